@@ -1,0 +1,5 @@
+import sys
+
+from hdrcam.cli import main
+
+sys.exit(main())

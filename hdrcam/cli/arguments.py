@@ -1,0 +1,56 @@
+"""Argument types and options shared by several commands."""
+
+from __future__ import annotations
+
+import argparse
+
+import torch
+
+from hdrcam.profiles import DEFAULT_PROFILE
+
+
+def positive_float(text: str) -> float:
+    """A positive number; 'inf' allowed (e.g. a source at infinity)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
+    return value
+
+
+def add_profile_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--profile", default=DEFAULT_PROFILE,
+                        help=f"capture profile name or .toml path (default {DEFAULT_PROFILE})")
+
+
+def add_compute_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"),
+                        help="compute device (auto: CUDA when present)")
+    parser.add_argument("--dtype", default="float32", choices=("float32", "float64"),
+                        help="floating-point precision of the simulation")
+
+
+def compute_device(name: str) -> torch.device:
+    from hdrcam.errors import InputError
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise InputError("--device cuda asked for, but torch sees no CUDA device")
+    return torch.device(name)
+
+
+def compute_dtype(name: str) -> torch.dtype:
+    return {"float32": torch.float32, "float64": torch.float64}[name]

@@ -1,0 +1,114 @@
+"""``hdrcam fabricate``: quantise a height map into lithography masks, with a report."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hdrcam import __version__
+from hdrcam.cli.arguments import add_profile_option, positive_int
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_writable, write_text_atomic
+from hdrcam.io.exr import write_exr
+from hdrcam.io.png import write_png
+from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
+                                       quantise_heightmap)
+from hdrcam.optics.heightmap import FixedHeightMap, load_heightmap, save_heightmap
+from hdrcam.optics.materials import refractive_index
+from hdrcam.profiles import load_profile
+
+
+def register(commands) -> None:
+    parser = commands.add_parser("fabricate", help="quantise a height map into lithography masks",
+                                 description=__doc__)
+    parser.add_argument("heightmap", type=Path, help="height-map EXR (e.g. from 'hdrcam psf' or 'hdrcam design')")
+    add_profile_option(parser)
+    parser.add_argument("--levels", type=positive_int, default=None,
+                        help="phase levels, a power of two (default: the profile's, 16 = 4 masks)")
+    parser.add_argument("--out", type=Path, default=Path("fabrication"), help="output folder")
+    parser.add_argument("--simulate", action="store_true",
+                        help="also simulate the PSFs of the continuous and the quantised DOE and compare them")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    parser.set_defaults(run=run)
+
+
+def run(arguments: argparse.Namespace) -> int:
+    profile = load_profile(arguments.profile)
+    levels = arguments.levels or profile.doe.levels
+    if levels < 2 or levels & (levels - 1):
+        raise InputError(f"--levels must be a power of two >= 2, got {levels}")
+    masks_count = levels.bit_length() - 1
+    outputs = {"heightmap": arguments.out / "heightmap_quantised.exr",
+               "report_json": arguments.out / "report.json", "report_md": arguments.out / "report.md",
+               **{f"mask{b}": arguments.out / f"mask_{b + 1}_of_{masks_count}.png" for b in range(masks_count)}}
+    if arguments.simulate:
+        outputs["psf"] = arguments.out / "psf_quantised.exr"
+    for path in outputs.values():
+        check_writable(path, overwrite=arguments.overwrite, inputs=[arguments.heightmap])
+
+    source = load_heightmap(arguments.heightmap, profile.doe.aperture_m)
+    heights = source.heights_m.numpy().astype(np.float64)
+    try:
+        quantised = quantise_heightmap(heights, profile.doe.h_max_m, levels)
+    except ValueError as error:
+        raise InputError(f"{arguments.heightmap}: {error}") from None
+    wavelength = design_wavelength_m(profile.doe.h_max_m, lambda w: refractive_index(profile.doe.material, w))
+    phase_per_height = 2 * np.pi / wavelength * (float(refractive_index(profile.doe.material, wavelength)) - 1)
+    report = {
+        "hdrcam_version": __version__, "input": str(arguments.heightmap), "profile": profile.name,
+        "levels": levels, "masks": masks_count, "feature_pitch_m": source.feature_pitch_m,
+        "features": list(heights.shape), "h_max_m": profile.doe.h_max_m, "step_m": quantised.step_m,
+        "max_height_m": float(quantised.heights_m.max()), "design_wavelength_m": wavelength,
+        "mask_etch_depths_m": [quantised.step_m * 2 ** b for b in range(masks_count)],
+        "ideal_multilevel_efficiency": ideal_multilevel_efficiency(levels),
+        "quantisation_strehl_at_design_wavelength": quantisation_strehl(heights, quantised.heights_m, phase_per_height),
+        "level_histogram": np.bincount(quantised.level_index.ravel(), minlength=levels).tolist(),
+    }
+    if arguments.simulate:
+        report.update(_compare_psfs(profile, source, quantised, outputs["psf"], arguments.overwrite))
+
+    save_heightmap(outputs["heightmap"], quantised.heights_m, source.feature_pitch_m, overwrite=arguments.overwrite,
+                   attributes={"levels": levels, "step_m": quantised.step_m})
+    for bit, mask in enumerate(quantised.masks()):
+        write_png(outputs[f"mask{bit}"], mask.astype(np.uint8) * 255, overwrite=arguments.overwrite)
+    write_text_atomic(outputs["report_json"], json.dumps(report, indent=2) + "\n", overwrite=arguments.overwrite)
+    write_text_atomic(outputs["report_md"], _markdown(report), overwrite=arguments.overwrite)
+    print(_markdown(report), end="")
+    print(f"wrote {', '.join(str(p) for p in outputs.values())}")
+    return 0
+
+
+def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, overwrite: bool) -> dict:
+    from hdrcam.optics.psf import OpticalSetup, PsfSimulator
+
+    setup = OpticalSetup.from_profile(profile)
+    simulator = PsfSimulator(setup, source, dtype=torch.float32)
+    with torch.no_grad():
+        continuous = simulator()
+        stepped = simulator.sensor_psf_uncropped(torch.as_tensor(quantised.heights_m, dtype=torch.float32))
+    crop = setup.grid.crop_sensor(stepped, setup.psf_size_px)
+    stepped_psf = crop / crop.sum(dim=(-2, -1), keepdim=True)
+    difference = (stepped_psf - continuous.psf).abs().sum(dim=(-2, -1))
+    write_exr(psf_path, stepped_psf.numpy().transpose(1, 2, 0), attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
+              overwrite=overwrite)
+    return {"psf_l1_difference_rgb": difference.tolist(),
+            "centre_energy_fraction_continuous_rgb": continuous.centre_energy_fraction.tolist()}
+
+
+def _markdown(report: dict) -> str:
+    lines = [f"# Fabrication report: {report['input']}", "",
+             f"- {report['levels']} levels = {report['masks']} binary masks, step {report['step_m'] * 1e9:.2f} nm, "
+             f"max height {report['max_height_m'] * 1e9:.2f} nm (h_max {report['h_max_m'] * 1e9:.1f} nm)",
+             f"- {report['features'][0]} x {report['features'][1]} features at {report['feature_pitch_m'] * 1e6:.3f} um",
+             "- mask etch depths: " + ", ".join(f"{d * 1e9:.2f} nm" for d in report["mask_etch_depths_m"]),
+             f"- design wavelength (h_max = one wave): {report['design_wavelength_m'] * 1e9:.1f} nm",
+             f"- ideal {report['levels']}-level efficiency sinc^2(1/N): {report['ideal_multilevel_efficiency']:.4f}",
+             f"- quantisation Strehl of this map: {report['quantisation_strehl_at_design_wavelength']:.4f}"]
+    if "psf_l1_difference_rgb" in report:
+        lines.append("- PSF L1 difference quantised vs continuous (R, G, B): "
+                     + ", ".join(f"{v:.4f}" for v in report["psf_l1_difference_rgb"]))
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,1 @@
+"""File input and output: EXR, PNG previews, atomic writes."""

@@ -1,0 +1,148 @@
+"""OpenEXR read and write (linear float images, any channel set, metadata attributes).
+
+Reading returns float32 channels at full resolution. Luminance-chroma files (Y, RY, BY, as written by
+OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
+(Rec. 709 / D65 when absent). Damaged files raise :class:`~hdrcam.errors.InputError` with one line.
+
+Writing is atomic, float32 by default or half on request; half output refuses values beyond the half
+range (65504) instead of silently storing Inf.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import OpenEXR
+
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import atomic_path
+
+HALF_MAX = float(np.finfo(np.float16).max)  # 65504
+_REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
+# Header keys that OpenEXR manages itself; everything else is a user attribute.
+_STRUCTURAL_KEYS = {
+    "channels", "compression", "dataWindow", "displayWindow", "lineOrder", "pixelAspectRatio",
+    "screenWindowCenter", "screenWindowWidth", "tiles", "type", "preview", "name", "version",
+    "chunkCount",
+}
+
+
+@dataclasses.dataclass
+class ExrImage:
+    """Channels of one EXR part (float32, H x W each) and its user attributes."""
+
+    channels: dict[str, np.ndarray]
+    attributes: dict[str, Any]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return next(iter(self.channels.values())).shape
+
+    def rgb(self) -> np.ndarray:
+        """H x W x 3 float32 linear RGB; raises InputError when the file has no colour channels."""
+        if all(name in self.channels for name in "RGB"):
+            return np.stack([self.channels[name] for name in "RGB"], axis=-1)
+        raise InputError(f"EXR has channels {sorted(self.channels)}, not R, G, B")
+
+    def single(self) -> np.ndarray:
+        """H x W float32 of a single-channel file (e.g. a height map)."""
+        if len(self.channels) != 1:
+            raise InputError(f"expected a single-channel EXR, found channels {sorted(self.channels)}")
+        return next(iter(self.channels.values()))
+
+
+def read_exr(path: Path) -> ExrImage:
+    """Read an EXR file. Raises InputError for a missing, damaged or unsupported file."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as exr_file:
+            header = dict(exr_file.header())
+            raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
+                            for name, channel in exr_file.channels().items()}
+    except (RuntimeError, UnicodeDecodeError, ValueError, TypeError, OSError, MemoryError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})") from None
+    if not raw_channels:
+        raise InputError(f"{path}: EXR file has no channels")
+    window_min, window_max = header["dataWindow"]
+    height, width = int(window_max[1] - window_min[1] + 1), int(window_max[0] - window_min[0] + 1)
+    channels = {name: _full_resolution(pixels, x_sampling, y_sampling, height, width, path, name)
+                for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
+    if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
+        chromaticities = header.get("chromaticities", _REC709_CHROMATICITIES)
+        red, green, blue = _luminance_chroma_to_rgb(channels.pop("Y"), channels.pop("RY"),
+                                                    channels.pop("BY"), chromaticities)
+        channels = {"R": red, "G": green, "B": blue, **channels}
+    attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
+    return ExrImage(channels=channels, attributes=attributes)
+
+
+def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, height: int, width: int,
+                     path: Path, name: str) -> np.ndarray:
+    if pixels.dtype.kind not in "fu":
+        raise InputError(f"{path}: channel {name} has unsupported pixel type {pixels.dtype}")
+    pixels = pixels.astype(np.float32)
+    if (x_sampling, y_sampling) != (1, 1):  # subsampled chroma: nearest-neighbour upsampling
+        pixels = np.repeat(np.repeat(pixels, y_sampling, axis=0), x_sampling, axis=1)[:height, :width]
+    if pixels.shape != (height, width):
+        raise InputError(f"{path}: channel {name} has shape {pixels.shape}, expected {(height, width)}")
+    return np.ascontiguousarray(pixels)
+
+
+def _luminance_chroma_to_rgb(luminance: np.ndarray, red_difference: np.ndarray, blue_difference: np.ndarray,
+                             chromaticities) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Invert OpenEXR's RgbaYca encoding: RY = (R - Y) / Y, BY = (B - Y) / Y, Y = w . RGB."""
+    import colour
+
+    values = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
+    primaries, whitepoint = values[:3], values[3]
+    weight_red, weight_green, weight_blue = colour.normalised_primary_matrix(primaries, whitepoint)[1]
+    red = (red_difference + 1.0) * luminance
+    blue = (blue_difference + 1.0) * luminance
+    green = (luminance - weight_red * red - weight_blue * blue) / weight_green
+    return (red.astype(np.float32), green.astype(np.float32), blue.astype(np.float32))
+
+
+def default_channel_names(pixels: np.ndarray) -> tuple[str, ...]:
+    """RGB for 3 channels, RGBA for 4, Y for a single channel."""
+    count = 1 if pixels.ndim == 2 else pixels.shape[-1]
+    names = {1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}
+    if count not in names:
+        raise ValueError(f"give channel names for a {count}-channel image")
+    return names[count]
+
+
+def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] | None = None,
+              attributes: dict[str, Any] | None = None, half: bool = False, overwrite: bool = False) -> Path:
+    """Write an H x W or H x W x C array atomically as a scanline, ZIP-compressed EXR.
+
+    ``attributes`` holds str, int or float values (floats are stored as 32-bit). ``half`` stores 16-bit
+    floats and raises InputError when a value exceeds the half range; non-finite values are refused.
+    """
+    pixels = np.asarray(pixels)
+    planes = pixels[..., None] if pixels.ndim == 2 else pixels
+    if planes.ndim != 3:
+        raise ValueError(f"expected an H x W or H x W x C image, got shape {pixels.shape}")
+    names = channel_names or default_channel_names(pixels)
+    if len(names) != planes.shape[-1]:
+        raise ValueError(f"{len(names)} channel names for {planes.shape[-1]} channels")
+    if not np.all(np.isfinite(planes)):
+        raise InputError(f"{path}: refusing to write NaN or Inf values")
+    if half:
+        peak = float(np.max(np.abs(planes))) if planes.size else 0.0
+        if peak > HALF_MAX:
+            raise InputError(f"{path}: values up to {peak:.6g} exceed the half-float range ({HALF_MAX:g}); "
+                             "write float32 instead")
+    dtype = np.float16 if half else np.float32
+    channels = {name: np.ascontiguousarray(planes[..., index].astype(dtype)) for index, name in enumerate(names)}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (attributes or {}).items():
+        header[key] = value.item() if isinstance(value, np.generic) else value
+    with atomic_path(Path(path), overwrite=overwrite) as temporary:
+        OpenEXR.File(header, channels).write(str(temporary))
+    return Path(path)

@@ -1,0 +1,179 @@
+"""PSF of the DOE camera: point source -> DOE -> thin lens -> sensor (paper Sec. 3, Eqs. 1-7).
+
+For each wavelength lambda (k = 2 pi / lambda):
+  u-  = A0 exp(j k sqrt(r^2 + z^2))                 spherical wave from a point at distance z (Eq. 1)
+  u+  = A(x, y) u- exp(j k (n(lambda) - 1) h(x, y))  DOE of height h, circular aperture A (Eq. 2)
+  u_l = u+ exp(j k (f - sqrt(r^2 + f^2)))            thin lens (Eq. 5)
+  u_s = F^-1{ F{u_l} H }                              propagation to the sensor at L (Eq. 6)
+  p   = |u_s|^2                                       (Eq. 7), summed over pixel blocks, averaged per band.
+
+The sensor sits at L = 1 / (1/f - 1/z_focus), where the profile's focus distance is sharp, so a source at
+another depth is defocused. Model "fresnel" (the paper's) uses the paraxial forms of the source and lens
+phases, k r^2 / (2 z) and -k r^2 / (2 f), with the Fresnel transfer function: the sqrt forms under a
+paraxial propagator would add about one wave of spurious spherical aberration at the A7's f/5.5.
+Model "angular_spectrum" uses the exact sqrt forms with the exact angular-spectrum propagator. Phases
+are formed in float64 with the constant pistons k z and k f removed, then cast to the working dtype.
+
+Intensities are normalised so the light through the aperture carries unit energy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import torch
+from torch import nn
+
+from hdrcam.optics.energy import centre_energy_fraction
+from hdrcam.optics.grid import SimulationGrid
+from hdrcam.optics.heightmap import HeightMap, feature_indices, sample_heightmap
+from hdrcam.optics.materials import refractive_index
+from hdrcam.optics.propagation import angular_spectrum_transfer, fresnel_transfer_axis, propagate
+from hdrcam.optics.spectrum import band_wavelengths_m
+from hdrcam.profiles import Profile, image_distance_m
+
+_COMPLEX = {torch.float32: torch.complex64, torch.float64: torch.complex128}
+
+
+@dataclasses.dataclass
+class PsfResult:
+    """Sensor-pitch PSF (3 x S x S, each channel sums to 1, axis at pixel S // 2) and energy bookkeeping."""
+
+    psf: torch.Tensor
+    centre_energy_fraction: torch.Tensor  # (3,) energy in the centre box / all energy reaching the sensor
+    crop_energy_fraction: torch.Tensor  # (3,) energy in the S x S crop / all energy reaching the sensor
+
+
+@dataclasses.dataclass(frozen=True)
+class OpticalSetup:
+    """Geometry and sampling of one simulation (metres)."""
+
+    grid: SimulationGrid
+    aperture_m: float
+    focal_length_m: float
+    sensor_distance_m: float
+    source_distance_m: float
+    material: str
+    propagation: str
+    band_wavelengths_m: tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
+    psf_size_px: int
+    energy_centre_radius_px: int
+
+    @classmethod
+    def from_profile(cls, profile: Profile, *, source_distance_m: float | None = None,
+                     wavelengths_per_band: int | None = None, psf_size_px: int | None = None,
+                     upsample: int | None = None, allow_aliasing: bool = False) -> "OpticalSetup":
+        simulation = profile.simulation
+        samples = wavelengths_per_band or simulation.wavelengths_per_band
+        bands = tuple(tuple(float(w) for w in band_wavelengths_m(edges, samples)) for edges in simulation.band_edges_m)
+        size = psf_size_px or simulation.psf_size_px
+        grid = SimulationGrid.for_optics(
+            pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
+            focal_length_m=profile.lens.focal_length_m, shortest_wavelength_m=min(min(b) for b in bands),
+            psf_size_px=size, upsample=upsample, allow_aliasing=allow_aliasing)
+        return cls(grid=grid, aperture_m=profile.doe.aperture_m, focal_length_m=profile.lens.focal_length_m,
+                   sensor_distance_m=profile.sensor_distance_m,
+                   source_distance_m=source_distance_m or profile.calibration.point_source_distance_m,
+                   material=profile.doe.material, propagation=simulation.propagation, band_wavelengths_m=bands,
+                   psf_size_px=size, energy_centre_radius_px=simulation.energy_centre_radius_px)
+
+    @property
+    def in_focus_distance_m(self) -> float:
+        """Where the source itself would focus (thin lens); equals sensor_distance_m when in focus."""
+        return image_distance_m(self.focal_length_m, self.source_distance_m)
+
+
+def source_lens_phase_rad(radius2_m2: np.ndarray, wavelength_m: float, source_distance_m: float,
+                          focal_length_m: float, exact: bool) -> np.ndarray:
+    """Phase of the source wave times the lens (float64, pistons removed), at squared radius r^2."""
+    k = 2.0 * np.pi / wavelength_m
+    if exact:  # k (sqrt(r^2 + z^2) - z) - k (sqrt(r^2 + f^2) - f), written without cancellation
+        source = 0.0 if math.isinf(source_distance_m) else radius2_m2 / (
+            np.sqrt(radius2_m2 + source_distance_m ** 2) + source_distance_m)
+        lens = radius2_m2 / (np.sqrt(radius2_m2 + focal_length_m ** 2) + focal_length_m)
+        return k * (source - lens)
+    curvature = (0.0 if math.isinf(source_distance_m) else 1.0 / source_distance_m) - 1.0 / focal_length_m
+    return k * radius2_m2 * curvature / 2.0
+
+
+class PsfSimulator(nn.Module):
+    """Differentiable PSF of ``heightmap`` in ``setup``; ``forward()`` returns a :class:`PsfResult`."""
+
+    def __init__(self, setup: OpticalSetup, heightmap: HeightMap, dtype: torch.dtype = torch.float32):
+        super().__init__()
+        self.setup, self.heightmap, self.dtype = setup, heightmap, dtype
+        grid = setup.grid
+        coordinates = grid.coordinates_m()
+        self._coordinates_m = coordinates
+        radius2 = coordinates[:, None] ** 2 + coordinates[None, :] ** 2
+        aperture = (radius2 <= (setup.aperture_m / 2.0) ** 2).astype(np.float64)
+        self.register_buffer("aperture", torch.from_numpy(aperture).to(dtype))
+        self.input_energy = float(aperture.sum())
+        features = heightmap().shape[0]
+        self.register_buffer("feature_index", feature_indices(coordinates, features, heightmap.feature_pitch_m))
+        self.wavelengths_m = [w for band in setup.band_wavelengths_m for w in band]
+        self.band_of_wavelength = [b for b, band in enumerate(setup.band_wavelengths_m) for _ in band]
+        complex_dtype = _COMPLEX[dtype]
+        phase_per_height = [2 * np.pi / w * (float(refractive_index(setup.material, w)) - 1.0)
+                            for w in self.wavelengths_m]
+        self.register_buffer("phase_per_height", torch.tensor(phase_per_height, dtype=dtype))
+        if setup.propagation == "fresnel":  # separable pupil phase and transfer function, one axis each
+            pupil = [np.exp(1j * source_lens_phase_rad(coordinates ** 2, w, setup.source_distance_m,
+                                                       setup.focal_length_m, exact=False))
+                     for w in self.wavelengths_m]
+            transfer = [fresnel_transfer_axis(grid.size, grid.pitch_m, w, setup.sensor_distance_m)
+                        for w in self.wavelengths_m]
+            self.register_buffer("pupil_axis", torch.from_numpy(np.stack(pupil)).to(complex_dtype))
+            self.register_buffer("transfer_axis", torch.from_numpy(np.stack(transfer)).to(complex_dtype))
+        elif setup.propagation != "angular_spectrum":
+            raise ValueError(f"unknown propagation model {setup.propagation!r}")
+
+    def _pupil_and_transfer(self, index: int):
+        if self.setup.propagation == "fresnel":
+            pupil = self.pupil_axis[index]
+            transfer = self.transfer_axis[index]
+            return pupil[:, None] * pupil[None, :], (transfer, transfer)
+        wavelength, grid = self.wavelengths_m[index], self.setup.grid
+        radius2 = self._coordinates_m[:, None] ** 2 + self._coordinates_m[None, :] ** 2
+        phase = source_lens_phase_rad(radius2, wavelength, self.setup.source_distance_m,
+                                      self.setup.focal_length_m, exact=True)
+        device, complex_dtype = self.aperture.device, _COMPLEX[self.dtype]
+        pupil = torch.from_numpy(np.exp(1j * phase)).to(device=device, dtype=complex_dtype)
+        transfer = angular_spectrum_transfer(grid.size, grid.pitch_m, wavelength, self.setup.sensor_distance_m)
+        return pupil, torch.from_numpy(transfer).to(device=device, dtype=complex_dtype)
+
+    def doe_field(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
+        """Complex field right behind the lens for wavelength ``index`` (N x N)."""
+        heights = self.heightmap() if heights_m is None else heights_m
+        fine_heights = sample_heightmap(heights, self.feature_index)
+        pupil, _ = self._pupil_and_transfer(index)
+        return torch.polar(self.aperture, fine_heights * self.phase_per_height[index]) * pupil
+
+    def fine_intensity(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
+        """|u_s|^2 on the fine grid for wavelength ``index``; sums to 1 when nothing is evanescent."""
+        _, transfer = self._pupil_and_transfer(index)
+        field = propagate(self.doe_field(index, heights_m), transfer)
+        return (field.real ** 2 + field.imag ** 2) / self.input_energy
+
+    def sensor_psf_uncropped(self, heights_m: torch.Tensor | None = None) -> torch.Tensor:
+        """Band-averaged PSF summed to the sensor pitch over the whole grid (3 x M x M), unnormalised."""
+        heights = self.heightmap() if heights_m is None else heights_m
+        grid = self.setup.grid
+        bands = [None, None, None]
+        counts = [len(band) for band in self.setup.band_wavelengths_m]
+        for index, band in enumerate(self.band_of_wavelength):
+            binned = grid.bin_to_sensor(self.fine_intensity(index, heights)) / counts[band]
+            bands[band] = binned if bands[band] is None else bands[band] + binned
+        return torch.stack(bands)
+
+    def forward(self) -> PsfResult:
+        full = self.sensor_psf_uncropped()
+        total = full.sum(dim=(-2, -1))
+        grid, size = self.setup.grid, self.setup.psf_size_px
+        crop = grid.crop_sensor(full, size)
+        crop_energy = crop.sum(dim=(-2, -1))
+        return PsfResult(psf=crop / crop_energy[:, None, None],
+                         centre_energy_fraction=centre_energy_fraction(full, self.setup.energy_centre_radius_px),
+                         crop_energy_fraction=crop_energy / total)
