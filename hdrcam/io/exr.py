@@ -11,6 +11,7 @@ range (65504) instead of silently storing Inf.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -97,7 +98,9 @@ def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, heigh
 def _luminance_chroma_to_rgb(luminance: np.ndarray, red_difference: np.ndarray, blue_difference: np.ndarray,
                              chromaticities) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Invert OpenEXR's RgbaYca encoding: RY = (R - Y) / Y, BY = (B - Y) / Y, Y = w . RGB."""
-    import colour
+    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
+        warnings.simplefilter("ignore")
+        import colour
 
     values = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
     primaries, whitepoint = values[:3], values[3]

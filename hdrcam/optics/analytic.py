@@ -47,7 +47,7 @@ def star(size_px: int, points: int = 8, centre_fraction: float = 0.94, falloff: 
         raise ValueError("centre_fraction must lie in [0, 1]")
     centre = size_px // 2
     length = (size_px - 1) / 2.0 if length_px is None else float(length_px)
-    radii = np.arange(1.0, length + 1e-9, 0.25)
+    radii = np.arange(1.5, length + 1e-9, 0.25)  # from 1.5 px no splat reaches the centre pixel
     streaks = np.zeros((size_px, size_px))
     for ray in range(points):
         angle = np.deg2rad(angle_deg) + 2.0 * np.pi * ray / points

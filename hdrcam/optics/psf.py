@@ -147,7 +147,7 @@ class PsfSimulator(nn.Module):
     def doe_field(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
         """Complex field right behind the lens for wavelength ``index`` (N x N)."""
         heights = self.heightmap() if heights_m is None else heights_m
-        fine_heights = sample_heightmap(heights, self.feature_index)
+        fine_heights = sample_heightmap(heights.to(self.dtype), self.feature_index)
         pupil, _ = self._pupil_and_transfer(index)
         return torch.polar(self.aperture, fine_heights * self.phase_per_height[index]) * pupil
 

@@ -1,0 +1,78 @@
+"""EXR input and output on real files, damaged files and the extremes of the half range."""
+
+from __future__ import annotations
+
+import numpy as np
+import OpenEXR
+import pytest
+
+from hdrcam.errors import InputError, OutputExistsError
+from hdrcam.io.exr import HALF_MAX, read_exr, write_exr
+
+
+@pytest.mark.parametrize("name", ["Bonita", "Cannon", "Carrots", "Desk", "MtTamWest", "Flowers"])
+def test_real_hdr_images_read_as_finite_linear_rgb(shared_data, name):
+    rgb = read_exr(shared_data / "hdr" / f"{name}.exr").rgb()
+    assert rgb.ndim == 3 and rgb.shape[2] == 3 and rgb.dtype == np.float32
+    assert np.isfinite(rgb).all() and rgb.max() > 0
+
+
+def test_luminance_chroma_file_converts_to_the_rgb_it_encodes(tmp_path):
+    rng = np.random.default_rng(0)
+    rgb = rng.uniform(0.1, 4.0, (8, 6, 3))
+    weights = np.array([0.212639, 0.715169, 0.072192])  # Rec. 709 / D65 luminance (ITU-R BT.709, 6 digits)
+    luminance = rgb @ weights
+    channels = {"Y": luminance, "RY": (rgb[..., 0] - luminance) / luminance, "BY": (rgb[..., 2] - luminance) / luminance}
+    OpenEXR.File({"type": OpenEXR.scanlineimage},
+                 {k: v.astype(np.float32) for k, v in channels.items()}).write(str(tmp_path / "yc.exr"))
+    np.testing.assert_allclose(read_exr(tmp_path / "yc.exr").rgb(), rgb, rtol=1e-4)
+
+
+@pytest.mark.parametrize("half", [False, True])
+def test_round_trip_rgb_and_single_channel_with_attributes(tmp_path, half):
+    rgb = np.random.default_rng(1).uniform(0, 300, (5, 7, 3)).astype(np.float32)
+    write_exr(tmp_path / "rgb.exr", rgb, half=half, attributes={"pixel_pitch_m": 5.97e-6, "note": "bracket 3"})
+    image = read_exr(tmp_path / "rgb.exr")
+    np.testing.assert_allclose(image.rgb(), rgb, rtol=1e-3 if half else 0)
+    assert image.attributes["note"] == "bracket 3"
+    assert image.attributes["pixel_pitch_m"] == pytest.approx(5.97e-6, rel=1e-6)
+    write_exr(tmp_path / "y.exr", rgb[..., 0], channel_names=("height_m",), half=half)
+    np.testing.assert_allclose(read_exr(tmp_path / "y.exr").single(), rgb[..., 0], rtol=1e-3 if half else 0)
+
+
+def test_half_overflow_and_non_finite_values_are_refused_without_a_file(tmp_path):
+    over = np.full((4, 4, 3), 2.0 ** 17, np.float32)
+    with pytest.raises(InputError, match="exceed the half-float range"):
+        write_exr(tmp_path / "over.exr", over, half=True)
+    write_exr(tmp_path / "edge.exr", np.full((2, 2, 3), HALF_MAX, np.float32), half=True)  # the largest half is fine
+    assert np.isfinite(read_exr(tmp_path / "edge.exr").rgb()).all()
+    with pytest.raises(InputError, match="NaN or Inf"):
+        write_exr(tmp_path / "nan.exr", np.array([[np.nan, 1.0]], np.float32))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["edge.exr"]
+
+
+def test_existing_output_is_never_replaced_unless_asked(tmp_path):
+    path = write_exr(tmp_path / "a.exr", np.ones((2, 2, 3), np.float32))
+    before = path.read_bytes()
+    with pytest.raises(OutputExistsError, match="already exists"):
+        write_exr(path, np.zeros((2, 2, 3), np.float32))
+    assert path.read_bytes() == before
+    write_exr(path, np.zeros((2, 2, 3), np.float32), overwrite=True)
+    assert read_exr(path).rgb().max() == 0
+
+
+def test_damaged_files_give_one_line_input_errors(shared_data):
+    damaged = sorted(p for p in (shared_data / "damaged-exr").iterdir() if not p.name.startswith("LICENSE"))
+    assert damaged
+    for path in damaged:
+        with pytest.raises(InputError) as caught:
+            read_exr(path)
+        assert "\n" not in str(caught.value) and path.name in str(caught.value)
+
+
+def test_missing_file_and_missing_colour_channels(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        read_exr(tmp_path / "absent.exr")
+    write_exr(tmp_path / "mono.exr", np.ones((2, 2), np.float32))
+    with pytest.raises(InputError, match="not R, G, B"):
+        read_exr(tmp_path / "mono.exr").rgb()

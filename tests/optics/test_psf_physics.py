@@ -1,0 +1,127 @@
+"""The wave model against analytic optics: Airy pattern, phase-grating orders, defocus, energy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.special
+import torch
+
+from hdrcam.optics.heightmap import FixedHeightMap, Rank1HeightMap, flat_heightmap
+from hdrcam.optics.materials import refractive_index
+from hdrcam.optics.psf import PsfSimulator
+from tests.optics.helpers import single_wavelength_setup
+
+
+def _axis_index(grid) -> int:
+    return int(np.argmin(np.abs(grid.coordinates_m())))
+
+
+def _first_dark_ring_m(intensity: np.ndarray, grid) -> float:
+    """First minimum of the profile along +x through the axis, refined by a parabola."""
+    centre = _axis_index(grid)
+    profile = intensity[centre, centre:].astype(np.float64)
+    index = next(i for i in range(1, len(profile) - 1) if profile[i] <= profile[i - 1] and profile[i] < profile[i + 1])
+    left, middle, right = profile[index - 1:index + 2]
+    offset = 0.5 * (left - right) / (left - 2 * middle + right)
+    return (index + offset) * grid.pitch_m
+
+
+@pytest.mark.parametrize("propagation", ["fresnel", "angular_spectrum"])
+def test_clear_aperture_first_dark_ring_at_airy_radius(propagation):
+    setup = single_wavelength_setup(aperture_m=1e-3, focal_length_m=50e-3, propagation=propagation)
+    simulator = PsfSimulator(setup, flat_heightmap(setup.aperture_m, 10e-6), dtype=torch.float64)
+    with torch.no_grad():
+        intensity = simulator.fine_intensity(0).numpy()
+    expected = 1.22 * 550e-9 * setup.sensor_distance_m / setup.aperture_m
+    assert _first_dark_ring_m(intensity, setup.grid) == pytest.approx(expected, rel=0.02)
+    # the peak sits on the optical axis
+    assert np.unravel_index(np.argmax(intensity), intensity.shape) == (_axis_index(setup.grid),) * 2
+
+
+def test_sinusoidal_phase_grating_orders_follow_bessel_functions():
+    wavelength, period, phase_amplitude = 550e-9, 50e-6, 1.2
+    setup = single_wavelength_setup(aperture_m=1e-3, focal_length_m=50e-3, upsample=3, window_m=2.5e-3)
+    feature_pitch = setup.grid.pitch_m
+    features = int(np.ceil(setup.aperture_m / feature_pitch)) + 2
+    x = (np.arange(features) - features / 2) * feature_pitch
+    phase_per_height = 2 * np.pi / wavelength * (float(refractive_index("fused_silica", wavelength)) - 1)
+    amplitude_m = phase_amplitude / phase_per_height
+    heights = np.repeat((amplitude_m * (1 + np.sin(2 * np.pi * x / period)))[None, :], features, axis=0)
+    simulator = PsfSimulator(setup, FixedHeightMap(heights, feature_pitch, dtype=torch.float64), dtype=torch.float64)
+    with torch.no_grad():
+        intensity = simulator.fine_intensity(0).numpy()
+    coordinates = setup.grid.coordinates_m()
+    spacing = wavelength * setup.sensor_distance_m / period
+    centre = _axis_index(setup.grid)
+    half_window = int(spacing / setup.grid.pitch_m / 2)
+    for order in (-1, 0, 1):
+        column = int(np.argmin(np.abs(coordinates - order * spacing)))
+        window = intensity[centre - half_window:centre + half_window, column - half_window:column + half_window]
+        energy = window.sum() / intensity.sum()
+        assert energy == pytest.approx(scipy.special.jv(order, phase_amplitude) ** 2, rel=0.05)
+        peak_row, peak_column = np.unravel_index(np.argmax(window), window.shape)
+        peak_x = coordinates[column - half_window + peak_column]
+        assert peak_x == pytest.approx(order * spacing, abs=setup.grid.pitch_m)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_propagation_conserves_energy_and_binning_preserves_it(dtype):
+    setup = single_wavelength_setup(aperture_m=1e-3, focal_length_m=50e-3)
+    heightmap = Rank1HeightMap(50, 20e-6, 1.125e-6, seed=3, init_std=1.0, dtype=dtype)
+    simulator = PsfSimulator(setup, heightmap, dtype=dtype)
+    with torch.no_grad():
+        field_energy = (simulator.doe_field(0).abs() ** 2).sum() / simulator.input_energy
+        intensity = simulator.fine_intensity(0)
+    assert float(field_energy) == pytest.approx(1.0, rel=1e-6)
+    assert float(intensity.sum()) == pytest.approx(1.0, rel=1e-5)
+    assert float(setup.grid.bin_to_sensor(intensity).sum()) == pytest.approx(float(intensity.sum()), rel=1e-6)
+
+
+def test_gradients_reach_rank1_factors_gradcheck():
+    setup = single_wavelength_setup(aperture_m=80e-6, focal_length_m=5e-3, pixel_pitch_m=6e-6, upsample=2,
+                                    psf_size_px=5)
+    heightmap = Rank1HeightMap(7, 12e-6, 1.125e-6, rank=3, seed=1, dtype=torch.float64)
+    simulator = PsfSimulator(setup, heightmap, dtype=torch.float64)
+    assert setup.grid.size <= 32
+
+    def psf_of(v, q):
+        return simulator.sensor_psf_uncropped(heightmap.h_max_m * torch.sigmoid(v @ q.T))
+
+    v = heightmap.v.detach().clone().requires_grad_(True)
+    q = heightmap.q.detach().clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(psf_of, (v, q), eps=1e-6, atol=1e-6, rtol=1e-4)
+
+
+def test_forward_gradients_are_finite_and_nonzero_for_both_factors():
+    setup = single_wavelength_setup(aperture_m=0.5e-3, focal_length_m=20e-3)
+    heightmap = Rank1HeightMap(25, 20e-6, 1.125e-6, seed=0)
+    result = PsfSimulator(setup, heightmap)()
+    (result.centre_energy_fraction.mean() + result.psf[:, 0, 0].sum()).backward()
+    for parameter in (heightmap.v, heightmap.q):
+        assert torch.isfinite(parameter.grad).all() and parameter.grad.abs().max() > 0
+
+
+def _radius_enclosing_m(intensity: np.ndarray, grid, fraction: float) -> float:
+    coordinates = grid.coordinates_m()
+    radius = np.hypot(coordinates[:, None], coordinates[None, :]).ravel()
+    order = np.argsort(radius)
+    cumulative = np.cumsum(intensity.ravel()[order])
+    return float(radius[order][np.searchsorted(cumulative, fraction * cumulative[-1])])
+
+
+def test_defocus_from_5m_to_1m_matches_geometric_blur_circle():
+    # D = 6 mm: 6.5 waves of defocus at 550 nm, so the blur is geometric (a 3 mm pupil gives only 1.6)
+    common = dict(aperture_m=6e-3, focal_length_m=50e-3, upsample=2, focus_distance_m=5.0)
+    in_focus = single_wavelength_setup(source_distance_m=5.0, **common)
+    near = single_wavelength_setup(source_distance_m=1.0, **common)
+    radii = {}
+    for name, setup in (("focus", in_focus), ("near", near)):
+        simulator = PsfSimulator(setup, flat_heightmap(setup.aperture_m, 10e-6), dtype=torch.float64)
+        with torch.no_grad():
+            radii[name] = _radius_enclosing_m(simulator.fine_intensity(0).numpy(), setup.grid, 0.5)
+    image_distance = near.in_focus_distance_m
+    blur_radius = setup.aperture_m / 2 * (image_distance - near.sensor_distance_m) / image_distance
+    # a uniform disk of radius R holds half its energy within R / sqrt(2)
+    assert radii["near"] == pytest.approx(blur_radius / np.sqrt(2), rel=0.03)
+    assert radii["focus"] < radii["near"] / 4

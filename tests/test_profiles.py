@@ -1,0 +1,49 @@
+"""Capture profiles: the shipped ones load; mistakes are reported with file, section and key."""
+
+from __future__ import annotations
+
+import pytest
+
+from hdrcam.errors import ProfileError
+from hdrcam.profiles import PROFILE_DIRECTORY, load_profile
+
+
+def test_sony_a7_profile_holds_the_papers_prototype():
+    profile = load_profile("sony-a7-zeiss50-rank1")
+    assert profile.camera.pixel_pitch_m == 5.97e-6 and profile.camera.bit_depth == 14
+    assert profile.camera.black_level_dn == 512 and profile.camera.cfa_pattern == "RGGB"
+    assert profile.lens.focal_length_m == 0.05 and profile.lens.f_number == 1.4
+    assert profile.doe.aperture_m == 9.16e-3 and profile.doe.feature_size_m == 6e-6
+    assert profile.doe.levels == 16 and profile.doe.h_max_m == 1.125e-6 and profile.doe.rank == 3
+    assert profile.calibration.point_source_distance_m == 5.0 and profile.calibration.stops == 5
+    assert profile.sensor_distance_m == pytest.approx(1 / (1 / 0.05 - 1 / 5.0))
+
+
+def _variant(tmp_path, old: str, new: str):
+    text = (PROFILE_DIRECTORY / "simulated.toml").read_text().replace(old, new, 1)
+    path = tmp_path / "variant.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("aperture_m = 2.048e-3", "aperture_m = -2.0e-3", r"\[doe\] aperture_m: must be positive"),
+    ("aperture_m = 2.048e-3", "aperture_m = \"wide\"", r"\[doe\] aperture_m: expected a number"),
+    ("aperture_m = 2.048e-3", "aperture_m = 2.048e-3\naperture_mm = 2.048", r"\[doe\] aperture_mm: unknown key"),
+    ("aperture_m = 2.048e-3", "", r"\[doe\] aperture_m: is required"),
+    ("levels = 16", "levels = 12", "power of two"),
+    ("cfa_pattern = \"RGGB\"", "cfa_pattern = \"RGBW\"", "must be one of"),
+    ("black_level_dn = 512", "black_level_dn = 20000", "black_level_dn < white_level_dn"),
+    ("aperture_m = 2.048e-3", "aperture_m = 20e-3", "wider than the lens pupil"),
+    ("[lens]", "[lense]", r"\[top level\] lense: unknown key"),
+    ("psf_size_px = 63", "psf_size_px = 63.5", "expected an integer"),
+    ("name = \"simulated\"", "name = [", "not valid TOML"),
+])
+def test_schema_errors_name_the_key(tmp_path, old, new, message):
+    with pytest.raises(ProfileError, match=message):
+        load_profile(_variant(tmp_path, old, new))
+
+
+def test_unknown_profile_lists_the_known_ones():
+    with pytest.raises(ProfileError, match="simulated, sony-a7-zeiss50-rank1"):
+        load_profile("no-such-camera")
