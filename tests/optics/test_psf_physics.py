@@ -125,3 +125,23 @@ def test_defocus_from_5m_to_1m_matches_geometric_blur_circle():
     # a uniform disk of radius R holds half its energy within R / sqrt(2)
     assert radii["near"] == pytest.approx(blur_radius / np.sqrt(2), rel=0.03)
     assert radii["focus"] < radii["near"] / 4
+
+
+def test_band_psf_is_the_mean_of_its_wavelength_samples():
+    import dataclasses
+
+    from hdrcam.profiles import load_profile
+    from hdrcam.optics.psf import OpticalSetup
+
+    setup = OpticalSetup.from_profile(load_profile("simulated"), wavelengths_per_band=3)
+    assert [len(band) for band in setup.band_wavelengths_m] == [3, 3, 3]
+    assert setup.band_wavelengths_m[2][0] == pytest.approx(410e-9 + 80e-9 / 6)
+    heightmap = Rank1HeightMap(64, 32e-6, 1.125e-6, seed=0)
+    simulator = PsfSimulator(setup, heightmap)
+    with torch.no_grad():
+        banded = simulator.sensor_psf_uncropped()
+        green = torch.stack([setup.grid.bin_to_sensor(simulator.fine_intensity(i)) for i in (3, 4, 5)]).mean(0)
+        one_sample = PsfSimulator(dataclasses.replace(setup, band_wavelengths_m=((650e-9,), (550e-9,), (450e-9,))),
+                                  heightmap).sensor_psf_uncropped()
+    torch.testing.assert_close(banded[1], green)
+    assert float((banded - one_sample).abs().sum()) > 1e-3  # the band integral differs from the narrow-band model
