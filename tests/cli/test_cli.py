@@ -93,3 +93,18 @@ def test_fabricate_masks_report_and_psf_of_the_quantised_doe(tmp_path, capsys):
                  "--out", str(tmp_path / "q")]) == 0
     np.testing.assert_allclose(read_exr(tmp_path / "q" / "psf.exr").rgb(),
                                read_exr(tmp_path / "f" / "psf_quantised.exr").rgb(), atol=1e-6)
+
+
+def test_missing_cuda_device_and_nan_heightmap_are_clear_errors(tmp_path, capsys):
+    import OpenEXR
+    import torch
+
+    if not torch.cuda.is_available():
+        assert main(["psf", "--profile", "simulated", "--device", "cuda", "--out", str(tmp_path / "c")]) == 1
+        assert "no CUDA device" in capsys.readouterr().err
+    heights = np.zeros((64, 64), np.float32)
+    heights[3, 4] = np.nan
+    OpenEXR.File({"pixel_pitch_m": 32e-6}, {"height_m": heights}).write(str(tmp_path / "nan.exr"))
+    assert main(["psf", "--profile", "simulated", "--doe", str(tmp_path / "nan.exr"), "--out", str(tmp_path / "n")]) == 1
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "NaN" in error and not (tmp_path / "n").exists()
