@@ -239,7 +239,6 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
         ev_step=calibration_table.number("ev_step"),
     )
     calibration_table.finish()
-    profile = Profile(name=name, path=path, camera=camera, lens=lens, doe=doe, simulation=simulation,
-                      calibration=calibration)
-    profile.sensor_distance_m  # validates focus distance > focal length
-    return profile
+    image_distance_m(lens.focal_length_m, calibration.focus_distance_m)  # raises unless focus distance > f
+    return Profile(name=name, path=path, camera=camera, lens=lens, doe=doe, simulation=simulation,
+                   calibration=calibration)

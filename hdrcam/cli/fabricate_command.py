@@ -19,6 +19,7 @@ from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_eff
                                        quantise_heightmap)
 from hdrcam.optics.heightmap import FixedHeightMap, load_heightmap, save_heightmap
 from hdrcam.optics.materials import refractive_index
+from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.profiles import load_profile
 
 
@@ -83,20 +84,17 @@ def run(arguments: argparse.Namespace) -> int:
 
 
 def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, overwrite: bool) -> dict:
-    from hdrcam.optics.psf import OpticalSetup, PsfSimulator
-
     setup = OpticalSetup.from_profile(profile)
     simulator = PsfSimulator(setup, source, dtype=torch.float32)
     with torch.no_grad():
         continuous = simulator()
-        stepped = simulator.sensor_psf_uncropped(torch.as_tensor(quantised.heights_m, dtype=torch.float32))
-    crop = setup.grid.crop_sensor(stepped, setup.psf_size_px)
-    stepped_psf = crop / crop.sum(dim=(-2, -1), keepdim=True)
-    difference = (stepped_psf - continuous.psf).abs().sum(dim=(-2, -1))
-    write_exr(psf_path, stepped_psf.numpy().transpose(1, 2, 0), attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
+        stepped = simulator(torch.as_tensor(quantised.heights_m, dtype=torch.float32))
+    difference = (stepped.psf - continuous.psf).abs().sum(dim=(-2, -1))
+    write_exr(psf_path, stepped.psf.numpy().transpose(1, 2, 0), attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
               overwrite=overwrite)
     return {"psf_l1_difference_rgb": difference.tolist(),
-            "centre_energy_fraction_continuous_rgb": continuous.centre_energy_fraction.tolist()}
+            "centre_energy_fraction_continuous_rgb": continuous.centre_energy_fraction.tolist(),
+            "centre_energy_fraction_quantised_rgb": stepped.centre_energy_fraction.tolist()}
 
 
 def _markdown(report: dict) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -101,6 +102,4 @@ def run(arguments: argparse.Namespace) -> int:
 
 
 def _with_propagation(profile, propagation: str):
-    import dataclasses
-
     return dataclasses.replace(profile, simulation=dataclasses.replace(profile.simulation, propagation=propagation))

@@ -168,8 +168,9 @@ class PsfSimulator(nn.Module):
             bands[band] = binned if bands[band] is None else bands[band] + binned
         return torch.stack(bands)
 
-    def forward(self) -> PsfResult:
-        full = self.sensor_psf_uncropped()
+    def forward(self, heights_m: torch.Tensor | None = None) -> PsfResult:
+        """The PSF of the module's height map, or of ``heights_m`` on the same feature grid."""
+        full = self.sensor_psf_uncropped(heights_m)
         total = full.sum(dim=(-2, -1))
         grid, size = self.setup.grid, self.setup.psf_size_px
         crop = grid.crop_sensor(full, size)
