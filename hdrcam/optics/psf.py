@@ -146,15 +146,18 @@ class PsfSimulator(nn.Module):
 
     def doe_field(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
         """Complex field right behind the lens for wavelength ``index`` (N x N)."""
+        pupil, _ = self._pupil_and_transfer(index)
+        return self._field_behind_lens(index, heights_m, pupil)
+
+    def _field_behind_lens(self, index: int, heights_m: torch.Tensor | None, pupil: torch.Tensor) -> torch.Tensor:
         heights = self.heightmap() if heights_m is None else heights_m
         fine_heights = sample_heightmap(heights.to(self.dtype), self.feature_index)
-        pupil, _ = self._pupil_and_transfer(index)
         return torch.polar(self.aperture, fine_heights * self.phase_per_height[index]) * pupil
 
     def fine_intensity(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
         """|u_s|^2 on the fine grid for wavelength ``index``; sums to 1 when nothing is evanescent."""
-        _, transfer = self._pupil_and_transfer(index)
-        field = propagate(self.doe_field(index, heights_m), transfer)
+        pupil, transfer = self._pupil_and_transfer(index)
+        field = propagate(self._field_behind_lens(index, heights_m, pupil), transfer)
         return (field.real ** 2 + field.imag ** 2) / self.input_energy
 
     def sensor_psf_uncropped(self, heights_m: torch.Tensor | None = None) -> torch.Tensor:
