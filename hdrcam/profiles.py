@@ -76,6 +76,8 @@ class CalibrationSpec:
     focus_distance_m: float
     stops: int
     ev_step: float
+    target_snr: float = 20.0  # --auto: the longest frame's SNR at snr_percentile of the region of interest
+    snr_percentile: float = 5.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -237,6 +239,8 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
         focus_distance_m=calibration_table.number("focus_distance_m"),
         stops=calibration_table.number("stops", integer=True),
         ev_step=calibration_table.number("ev_step"),
+        target_snr=calibration_table.number("target_snr", default=20.0),
+        snr_percentile=calibration_table.number("snr_percentile", default=5.0, maximum=100.0),
     )
     calibration_table.finish()
     image_distance_m(lens.focal_length_m, calibration.focus_distance_m)  # raises unless focus distance > f

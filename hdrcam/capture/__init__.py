@@ -1,0 +1,1 @@
+"""Cameras: one protocol, three backends (simulated, emulated USB, Sony A7 over USB), RAW ingest and brackets."""

@@ -1,0 +1,92 @@
+"""Scenes for the simulated camera: linear radiance images and point sources.
+
+Radiance is relative: 1.0 just fills the sensor (full well, base ISO) at the simulated camera's reference
+exposure. A ``PointSource`` is an unresolved emitter (the PSF calibration target: a source < 0.59 mm wide at
+5 m images within one A7 pixel, REFERENCE.md sec. 5); its ``power`` is the total relative radiance it puts
+on the sensor, spread by the PSF, at a sub-pixel position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.data.night_scene import night_scene
+from hdrcam.errors import InputError
+from hdrcam.io.exr import read_exr
+
+SCENE_KINDS = ("point", "night", "flat")
+DEFAULT_POINT_POWER = 50.0  # PSF peak ~ half the full well at 1/4000 s with the default reference exposure
+
+
+@dataclasses.dataclass(frozen=True)
+class PointSource:
+    x_px: float  # column of the image of the source, pixel centres at integers
+    y_px: float
+    power: float  # total relative radiance (sum over the PSF), per channel
+    colour: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """What the camera looks at: an H x W x 3 radiance image (or None = black) plus point sources."""
+
+    height_px: int
+    width_px: int
+    radiance: np.ndarray | None = None
+    points: tuple[PointSource, ...] = ()
+    description: str = ""
+
+    def dark(self) -> "Scene":
+        """The same framing with the lens covered."""
+        return Scene(self.height_px, self.width_px, None, (), f"dark ({self.description})")
+
+
+def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene:
+    """``point[:POWER]`` | ``night`` | ``flat[:LEVEL]`` | an EXR file (scaled to cover the sensor, centre crop)."""
+    kind, _, argument = spec.partition(":")
+    if kind == "point":
+        power = _number(spec, argument, DEFAULT_POINT_POWER)
+        rng = np.random.default_rng(seed)
+        offset = rng.uniform(-0.5, 0.5, 2)
+        source = PointSource(width_px // 2 + float(offset[0]), height_px // 2 + float(offset[1]), power)
+        return Scene(height_px, width_px, None, (source,), f"point source, power {power:g}, "
+                                                           f"at ({source.x_px:.3f}, {source.y_px:.3f}) px")
+    if kind == "night":
+        return Scene(height_px, width_px, night_scene(height_px, width_px, seed), (), f"procedural night, seed {seed}")
+    if kind == "flat":
+        level = _number(spec, argument, 0.5)
+        radiance = np.full((height_px, width_px, 3), level, np.float32)
+        return Scene(height_px, width_px, radiance, (), f"flat field {level:g}")
+    path = Path(spec)
+    if path.suffix.lower() != ".exr":
+        raise InputError(f"unknown scene {spec!r}: give point[:POWER], night, flat[:LEVEL] or an .exr file")
+    radiance = read_exr(path).rgb()
+    if not np.isfinite(radiance).all():
+        raise InputError(f"{path}: the scene has NaN or infinite pixels")
+    return Scene(height_px, width_px, _cover(radiance, height_px, width_px), (), f"{path.name}")
+
+
+def _number(spec: str, text: str, default: float) -> float:
+    if not text:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"scene {spec!r}: {text!r} is not a number") from None
+    if not value >= 0 or not np.isfinite(value):
+        raise InputError(f"scene {spec!r}: the level must be finite and >= 0")
+    return value
+
+
+def _cover(image: np.ndarray, height_px: int, width_px: int) -> np.ndarray:
+    """Scale so the image covers the sensor (area averaging when shrinking), then crop the centre."""
+    scale = max(height_px / image.shape[0], width_px / image.shape[1])
+    size = (max(width_px, round(image.shape[1] * scale)), max(height_px, round(image.shape[0] * scale)))
+    interpolation = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+    resized = cv2.resize(np.ascontiguousarray(image, np.float32), size, interpolation=interpolation)
+    top, left = (resized.shape[0] - height_px) // 2, (resized.shape[1] - width_px) // 2
+    return np.clip(resized[top:top + height_px, left:left + width_px], 0.0, None)
