@@ -1,0 +1,36 @@
+"""Choose and build a camera backend: ``sim``, ``sim-usb`` or ``usb`` (the ``--camera`` option)."""
+
+from __future__ import annotations
+
+from hdrcam.capture.camera import Camera
+from hdrcam.capture.scene import Scene
+from hdrcam.capture.simulated import SimulatedCamera
+from hdrcam.profiles import Profile
+
+CAMERA_KINDS = ("sim", "sim-usb", "usb")
+
+
+def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=None, seed: int = 0,
+                faults=None, **simulation) -> tuple[Camera, SimulatedCamera | None]:
+    """A camera ready to be entered (``with camera:``) and, for sim and sim-usb, the simulation behind it.
+
+    ``sim`` and ``sim-usb`` need the ``scene`` and ``psf`` they image; ``faults`` (emulator.Faults) make the
+    emulated camera misbehave; ``simulation`` goes to SimulatedCamera (hot pixels, exposure error, ...).
+    """
+    if kind == "usb":
+        from hdrcam.capture.sony import SonyA7Camera
+
+        return SonyA7Camera(), None
+    if kind not in CAMERA_KINDS:
+        raise ValueError(f"unknown camera {kind!r}; choose from {', '.join(CAMERA_KINDS)}")
+    simulated = SimulatedCamera(profile, scene, psf, seed=seed, **simulation)
+    if kind == "sim":
+        return simulated, simulated
+    from hdrcam.capture.emulator import EmulatedSonyA7, EmulatedUsbBackend
+    from hdrcam.capture.sony import SonyA7Camera, find_sony_camera
+
+    emulated = EmulatedSonyA7(simulated, faults=faults)
+    backend = EmulatedUsbBackend(emulated)
+    camera = SonyA7Camera(find_sony_camera(backend), clock=emulated.clock,
+                          cover_lens=lambda covered: setattr(emulated, "lens_covered", covered))
+    return camera, simulated

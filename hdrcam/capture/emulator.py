@@ -1,0 +1,427 @@
+"""``--camera sim-usb``: an emulated Sony A7 that speaks PTP over a pyusb backend (usb.backend.IBackend).
+
+The real ``usb`` code path - device discovery, descriptors, endpoints, containers and ZLPs, the Sony
+handshake, notch stepping, capture and download - runs against it unchanged. Frames come from a
+``SimulatedCamera``, so the same seed gives the same RAW data as ``--camera sim``. Time is virtual: a step
+lands 0.7 s after it is asked for and an image is ready after its exposure plus 0.4 s, counted on a clock
+that advances when the host sleeps or a read times out, so tests run fast and deterministically.
+
+``Faults`` make the camera misbehave on purpose: DeviceBusy answers, a response that never comes,
+a disconnect in the middle of a download, a response for the wrong transaction, steps that overshoot.
+The emulator serves DNG files (format code 0xB101 like the A7's ARW).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import datetime as dt
+import errno
+import struct
+from types import SimpleNamespace
+
+import usb.backend
+import usb.core
+
+from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES
+from hdrcam.capture.ptp.codes import (SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_RAW_FORMAT,
+                                      SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID,
+                                      ClassRequest, ContainerType, DataType, Event, Operation, Property, Response)
+from hdrcam.capture.ptp.container import Container, ContainerError, data, event, parse_header, response
+from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, DeviceInfo, ObjectInfo, PropertyDescriptor,
+                                         pack_sony_properties)
+from hdrcam.capture.ptp.session import Clock
+from hdrcam.capture.simulated import SimulatedCamera
+
+STEP_LATENCY_S = 0.7
+PROCESSING_S = 0.4
+BULK_PACKET_BYTES = 512  # USB 2.0 high speed
+INTERRUPT_PACKET_BYTES = 64
+_DATA_OUT_OPERATIONS = {Operation.SONY_SET_CONTROL_DEVICE_A, Operation.SONY_SET_CONTROL_DEVICE_B,
+                        Operation.SET_DEVICE_PROP_VALUE}
+
+
+class VirtualClock(Clock):
+    """Seconds that pass only when someone sleeps or waits."""
+
+    def __init__(self):
+        self.now_s = 0.0
+
+    def monotonic(self) -> float:
+        return self.now_s
+
+    def sleep(self, seconds: float) -> None:
+        self.now_s += max(seconds, 0.0)
+
+
+@dataclasses.dataclass
+class Faults:
+    """Misbehaviour to inject; each counter is consumed as the fault fires."""
+
+    busy: int = 0  # answer the next N operations (after the handshake) with DeviceBusy
+    silent_operation: int | None = None  # never answer the next command with this code
+    disconnect_during_download: bool = False  # unplug after the first chunk of the next GetObject
+    wrong_transaction_operation: int | None = None  # answer the next command with this code for another transaction
+    overshoot_every: int = 0  # every Nth notch step moves two notches
+
+
+class _InPipe:
+    """A bulk-in pipe: queued transfers read with USB semantics (a read ends at a short packet or a full buffer)."""
+
+    def __init__(self, packet_bytes: int):
+        self.packet_bytes = packet_bytes
+        self.transfers: collections.deque[list] = collections.deque()  # [bytes, offset]
+
+    def queue(self, payload: bytes) -> None:
+        self.transfers.append([payload, 0])
+
+    def clear(self) -> None:
+        self.transfers.clear()
+
+    def read_into(self, buffer) -> int | None:
+        """Bytes copied into ``buffer``, or None if nothing is waiting."""
+        if not self.transfers:
+            return None
+        transfer = self.transfers[0]
+        payload, offset = transfer
+        remaining = len(payload) - offset
+        size = len(buffer)
+        if remaining > size:
+            count = size - size % self.packet_bytes
+        else:
+            count = remaining
+            self.transfers.popleft()
+            if remaining == size and len(payload) % self.packet_bytes == 0 and len(payload):
+                self.transfers.appendleft([b"", 0])  # the ZLP did not fit in this read: it comes next
+        memoryview(buffer).cast("B")[:count] = payload[offset:offset + count]
+        transfer[1] = offset + count
+        return count
+
+
+class EmulatedSonyA7:
+    """The camera side of PTP: a Sony A7 in PC-remote mode (protocol mode 2)."""
+
+    def __init__(self, camera: SimulatedCamera, *, clock: VirtualClock | None = None, faults: Faults | None = None):
+        self.camera = camera
+        self.clock = clock or VirtualClock()
+        self.faults = faults or Faults()
+        self.in_pipe = _InPipe(BULK_PACKET_BYTES)
+        self.events: collections.deque[bytes] = collections.deque()
+        self.connected = True
+        self.lens_covered = False
+        self._out_transfer = bytearray()
+        self._awaiting_data: Container | None = None
+        self._reset_state()
+        self._handshake_done = False
+
+    def _reset_state(self) -> None:
+        self.session_open = False
+        self._steps: list[tuple[float, int, int]] = []  # (due time, property, notches)
+        self._step_count = 0
+        self._buttons = {Property.SONY_HALF_PRESS: 1, Property.SONY_FULL_PRESS: 1}
+        self._image: bytes | None = None
+        self._image_due_s: float | None = None
+        self._image_number = 0
+        self._downloading = False
+        self.in_pipe.clear()
+
+    # -- USB side --------------------------------------------------------------------------------------------
+    def bulk_out(self, chunk: bytes) -> None:
+        """Bytes the host wrote; a transfer ends with a short packet or a ZLP."""
+        self._require_connected()
+        self._out_transfer += chunk
+        if len(chunk) and len(chunk) % BULK_PACKET_BYTES == 0:
+            return  # a full packet: the transfer goes on
+        transfer, self._out_transfer = bytes(self._out_transfer), bytearray()
+        if not transfer:
+            return
+        try:
+            container = Container.unpack(transfer)
+        except ContainerError:
+            return  # garbage: a real camera ignores it and the host times out
+        if self._awaiting_data is not None:
+            request, self._awaiting_data = self._awaiting_data, None
+            if container.kind == ContainerType.DATA and container.transaction_id == request.transaction_id:
+                self._answer(request, container.payload)
+            return
+        if container.kind != ContainerType.COMMAND:
+            return
+        if container.code in _DATA_OUT_OPERATIONS:
+            self._awaiting_data = container
+            return
+        self._answer(container, None)
+
+    def bulk_in(self, buffer) -> int:
+        self._require_connected()
+        self._advance()
+        count = self.in_pipe.read_into(buffer)
+        if count is None:
+            raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
+        if self._downloading and self.faults.disconnect_during_download:
+            self.faults.disconnect_during_download = False
+            self.connected = False
+        return count
+
+    def interrupt_in(self, buffer) -> int:
+        self._require_connected()
+        self._advance()
+        if not self.events:
+            raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
+        packet = self.events.popleft()
+        memoryview(buffer).cast("B")[:len(packet)] = packet
+        return len(packet)
+
+    def class_request(self, request: int, payload: bytes) -> bytes:
+        self._require_connected()
+        if request == ClassRequest.CANCEL:
+            self.in_pipe.clear()
+            self._awaiting_data, self._out_transfer = None, bytearray()
+            return b""
+        if request == ClassRequest.DEVICE_RESET:
+            self._reset_state()
+            return b""
+        if request == ClassRequest.GET_DEVICE_STATUS:
+            return struct.pack("<HH", 4, Response.OK)
+        raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
+
+    def _require_connected(self) -> None:
+        if not self.connected:
+            raise usb.core.USBError("No such device (it may have been disconnected)", errno=errno.ENODEV)
+
+    # -- PTP side --------------------------------------------------------------------------------------------
+    def _answer(self, request: Container, payload: bytes | None) -> None:
+        code, transaction_id = request.code, request.transaction_id
+        faults = self.faults
+        if faults.silent_operation == code:
+            faults.silent_operation = None
+            return
+        if faults.busy and self._handshake_done and code != Operation.OPEN_SESSION:
+            faults.busy -= 1
+            self._send(response(Response.DEVICE_BUSY, transaction_id))
+            return
+        if faults.wrong_transaction_operation == code:
+            faults.wrong_transaction_operation = None
+            transaction_id += 1
+        if code != Operation.OPEN_SESSION and code != Operation.GET_DEVICE_INFO and not self.session_open:
+            self._send(response(Response.SESSION_NOT_OPEN, transaction_id))
+            return
+        handler = getattr(self, f"_op_{code:04x}", None)
+        if handler is None:
+            self._send(response(Response.OPERATION_NOT_SUPPORTED, transaction_id))
+            return
+        outcome = handler(request, payload)
+        reply_payload, reply_code = outcome if isinstance(outcome, tuple) else (None, outcome)
+        if reply_payload is not None:
+            self._send(data(code, transaction_id, reply_payload))
+        self._send(response(reply_code, transaction_id))
+
+    def _send(self, container: Container) -> None:
+        self.in_pipe.queue(container.pack())
+
+    def _op_1002(self, request, payload):  # OpenSession
+        if self.session_open:
+            return Response.SESSION_ALREADY_OPEN
+        self.session_open = True
+        return Response.OK
+
+    def _op_1003(self, request, payload):  # CloseSession
+        self.session_open = False
+        return Response.OK
+
+    def _op_1001(self, request, payload):  # GetDeviceInfo
+        info = DeviceInfo(100, SONY_VENDOR_EXTENSION_ID, 100, "Sony PTP Extensions", 0,
+                          tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
+                          (SONY_RAW_FORMAT,), "Sony Corporation", "ILCE-7", "1.00", f"{self.camera.seed:08d}")
+        return info.pack(), Response.OK
+
+    def _op_9201(self, request, payload):  # SDIOConnect phases 1, 2, 3
+        if request.params and request.params[0] == 3:
+            self._handshake_done = True
+        return Response.OK
+
+    def _op_9202(self, request, payload):  # GetSDIOGetExtDeviceInfo -> protocol version, then codes
+        codes = [int(c) for c in (*Operation, *Event, *Property)]
+        return struct.pack(f"<H{len(codes)}H", 0xC8, *codes), Response.OK
+
+    def _op_9209(self, request, payload):  # GetAllDevicePropData
+        return pack_sony_properties(self._descriptors()), Response.OK
+
+    def _op_9207(self, request, payload):  # SetControlDeviceB: buttons and notch steps
+        code = request.params[0] if request.params else 0
+        if code in (Property.SONY_SHUTTER_SPEED, Property.SONY_ISO):
+            if len(payload) not in (1, 2):
+                return Response.PARAMETER_NOT_SUPPORTED
+            delta = struct.unpack("<b" if len(payload) == 1 else "<h", payload)[0]
+            if delta not in (1, -1):
+                return Response.PARAMETER_NOT_SUPPORTED
+            self._step_count += 1
+            notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
+            if code == Property.SONY_SHUTTER_SPEED:
+                delta = -delta  # the A7 counts shutter notches towards longer times
+            self._steps.append((self.clock.monotonic() + STEP_LATENCY_S, code, delta * notches))
+            return Response.OK
+        if code in self._buttons:
+            if len(payload) != 2:
+                return Response.PARAMETER_NOT_SUPPORTED
+            state = struct.unpack("<H", payload)[0]
+            if code == Property.SONY_FULL_PRESS and state == 1 and self._buttons[code] == 2:
+                self._expose()
+            self._buttons[code] = state
+            return Response.OK
+        return Response.DEVICE_PROP_NOT_SUPPORTED
+
+    def _op_1008(self, request, payload):  # GetObjectInfo
+        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or self._image is None:
+            return Response.INVALID_OBJECT_HANDLE
+        info = ObjectInfo(0x00010001, SONY_RAW_FORMAT, 0, len(self._image), 0, 0, 0, 0,
+                          self.camera.scene.width_px, self.camera.scene.height_px, 16, 0, 0, 0, 0,
+                          f"DSC{self._image_number:05d}.DNG", "", "", "")
+        return info.pack(), Response.OK
+
+    def _op_1009(self, request, payload):  # GetObject
+        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or self._image is None:
+            return Response.INVALID_OBJECT_HANDLE
+        image, self._image = self._image, None
+        self._downloading = True
+        return image, Response.OK
+
+    # -- camera behaviour ----------------------------------------------------------------------------------
+    def _expose(self) -> None:
+        camera = self.camera
+        bayer = camera.render_dn(dark=self.lens_covered)
+        settings = camera.settings()
+        timestamp = dt.datetime.now().replace(microsecond=0)
+        self._image_number += 1
+        self._image = camera.frame_bytes(bayer, settings, timestamp)
+        self._image_due_s = self.clock.monotonic() + camera.true_exposure_s() + PROCESSING_S
+
+    def _advance(self) -> None:
+        """Apply whatever became due on the virtual clock: landed steps, a finished exposure."""
+        now = self.clock.monotonic()
+        self._downloading = self._downloading and bool(self.in_pipe.transfers)
+        for step in [s for s in self._steps if s[0] <= now]:
+            self._steps.remove(step)
+            _, code, delta = step
+            if code == Property.SONY_SHUTTER_SPEED:
+                index = min(max(self.camera.notch.index + delta, 0), len(SHUTTER_NOTCHES) - 1)
+                self.camera.set_notch(SHUTTER_NOTCHES[index])
+            else:
+                index = min(max(ISO_VALUES.index(int(self.camera.settings().iso)) + delta, 0), len(ISO_VALUES) - 1)
+                self.camera.set_iso(ISO_VALUES[index])
+            self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
+        if self._image_due_s is not None and now >= self._image_due_s:
+            self._image_due_s = None
+            self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+
+    def _descriptors(self) -> list[PropertyDescriptor]:
+        self._advance()
+        settings = self.camera.settings()
+        pending = SONY_PENDING_IMAGE_FLAG | 1 if self._image is not None and self._image_due_s is None else 0
+        shutter = self.camera.notch.ptp_value
+        return [
+            PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
+            PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, int(settings.iso), FORM_ENUMERATION,
+                               ISO_VALUES),
+            PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100)),
+            PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, 0x10),
+            PropertyDescriptor(Property.SONY_PENDING_IMAGES, DataType.UINT16, 0, 1, 0, pending),
+        ]
+
+
+class EmulatedUsbBackend(usb.backend.IBackend):
+    """A pyusb backend with one device on it: the emulated A7 (054c:094c, PTP interface 6/1/1)."""
+
+    def __init__(self, camera: EmulatedSonyA7):
+        super().__init__()
+        self.camera = camera
+        self._endpoints = (
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x81, bmAttributes=2,
+                            wMaxPacketSize=BULK_PACKET_BYTES, bInterval=0, bRefresh=0, bSynchAddress=0,
+                            extra_descriptors=[]),
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x02, bmAttributes=2,
+                            wMaxPacketSize=BULK_PACKET_BYTES, bInterval=0, bRefresh=0, bSynchAddress=0,
+                            extra_descriptors=[]),
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x83, bmAttributes=3,
+                            wMaxPacketSize=INTERRUPT_PACKET_BYTES, bInterval=4, bRefresh=0, bSynchAddress=0,
+                            extra_descriptors=[]),
+        )
+
+    def enumerate_devices(self):
+        if self.camera.connected:
+            yield "emulated-sony-a7"
+
+    def get_device_descriptor(self, dev):
+        return SimpleNamespace(bLength=18, bDescriptorType=1, bcdUSB=0x0200, bDeviceClass=0, bDeviceSubClass=0,
+                               bDeviceProtocol=0, bMaxPacketSize0=64, idVendor=SONY_USB_VENDOR_ID,
+                               idProduct=SONY_A7_PC_REMOTE_PRODUCT_ID, bcdDevice=0x0100, iManufacturer=1,
+                               iProduct=2, iSerialNumber=3, bNumConfigurations=1, address=7, bus=1,
+                               port_number=1, port_numbers=(1,), speed=3)
+
+    def get_configuration_descriptor(self, dev, config):
+        return SimpleNamespace(bLength=9, bDescriptorType=2, wTotalLength=39, bNumInterfaces=1,
+                               bConfigurationValue=1, iConfiguration=0, bmAttributes=0xC0, bMaxPower=250,
+                               extra_descriptors=[])
+
+    def get_interface_descriptor(self, dev, intf, alt, config):
+        return SimpleNamespace(bLength=9, bDescriptorType=4, bInterfaceNumber=0, bAlternateSetting=0,
+                               bNumEndpoints=3, bInterfaceClass=6, bInterfaceSubClass=1, bInterfaceProtocol=1,
+                               iInterface=0, extra_descriptors=[])
+
+    def get_endpoint_descriptor(self, dev, ep, intf, alt, config):
+        return self._endpoints[ep]
+
+    def open_device(self, dev):
+        self.camera._require_connected()
+        return dev
+
+    def close_device(self, dev_handle):
+        pass
+
+    def set_configuration(self, dev_handle, config_value):
+        self.camera._require_connected()
+
+    def get_configuration(self, dev_handle):
+        return 1
+
+    def set_interface_altsetting(self, dev_handle, intf, altsetting):
+        pass
+
+    def claim_interface(self, dev_handle, intf):
+        self.camera._require_connected()
+
+    def release_interface(self, dev_handle, intf):
+        pass
+
+    def bulk_write(self, dev_handle, ep, intf, data, timeout):
+        self.camera.bulk_out(bytes(data))
+        return len(data)
+
+    def bulk_read(self, dev_handle, ep, intf, buff, timeout):
+        try:
+            return self.camera.bulk_in(buff)
+        except usb.core.USBTimeoutError:
+            self.camera.clock.sleep(timeout / 1000)
+            raise
+
+    def intr_read(self, dev_handle, ep, intf, buff, timeout):
+        try:
+            return self.camera.interrupt_in(buff)
+        except usb.core.USBTimeoutError:
+            self.camera.clock.sleep(timeout / 1000)
+            raise
+
+    def ctrl_transfer(self, dev_handle, bmRequestType, bRequest, wValue, wIndex, data, timeout):
+        reply = self.camera.class_request(bRequest, bytes(data) if data is not None else b"")
+        if bmRequestType & 0x80:
+            memoryview(data).cast("B")[:len(reply)] = reply
+            return len(reply)
+        return len(data) if data is not None else 0
+
+    def clear_halt(self, dev_handle, ep):
+        pass
+
+    def reset_device(self, dev_handle):
+        self.camera._reset_state()
+
+    def is_kernel_driver_active(self, dev_handle, intf):
+        return False

@@ -1,0 +1,106 @@
+"""PTP and Sony vendor codes used by hdrcam (REFERENCE.md sec. 4; ISO 15740; libgphoto2 ptp.h)."""
+
+from enum import IntEnum
+
+
+class ContainerType(IntEnum):
+    COMMAND = 1
+    DATA = 2
+    RESPONSE = 3
+    EVENT = 4
+
+
+class Operation(IntEnum):
+    GET_DEVICE_INFO = 0x1001
+    OPEN_SESSION = 0x1002
+    CLOSE_SESSION = 0x1003
+    GET_STORAGE_IDS = 0x1004
+    GET_OBJECT_HANDLES = 0x1007
+    GET_OBJECT_INFO = 0x1008
+    GET_OBJECT = 0x1009
+    DELETE_OBJECT = 0x100B
+    INITIATE_CAPTURE = 0x100E
+    GET_DEVICE_PROP_DESC = 0x1014
+    GET_DEVICE_PROP_VALUE = 0x1015
+    SET_DEVICE_PROP_VALUE = 0x1016
+    SONY_SDIO_CONNECT = 0x9201
+    SONY_GET_SDIO_EXT_DEVICE_INFO = 0x9202
+    SONY_SET_CONTROL_DEVICE_A = 0x9205
+    SONY_SET_CONTROL_DEVICE_B = 0x9207
+    SONY_GET_ALL_DEVICE_PROP_DATA = 0x9209
+
+
+class Response(IntEnum):
+    OK = 0x2001
+    GENERAL_ERROR = 0x2002
+    SESSION_NOT_OPEN = 0x2003
+    INVALID_TRANSACTION_ID = 0x2004
+    OPERATION_NOT_SUPPORTED = 0x2005
+    PARAMETER_NOT_SUPPORTED = 0x2006
+    INCOMPLETE_TRANSFER = 0x2007
+    INVALID_OBJECT_HANDLE = 0x2009
+    DEVICE_PROP_NOT_SUPPORTED = 0x200A
+    STORE_NOT_AVAILABLE = 0x2013
+    DEVICE_BUSY = 0x2019
+    TRANSACTION_CANCELLED = 0x201F
+    SESSION_ALREADY_OPEN = 0x201E
+
+
+class Event(IntEnum):
+    OBJECT_ADDED = 0x4002
+    CAPTURE_COMPLETE = 0x400D
+    SONY_OBJECT_ADDED = 0xC201
+    SONY_PROPERTY_CHANGED = 0xC203
+
+
+class Property(IntEnum):
+    IMAGE_QUALITY = 0x5004  # Sony: 0x10 = RAW
+    F_NUMBER = 0x5007  # u16, f-number x 100
+    EXPOSURE_COMPENSATION = 0x5010  # i16, EV x 1000
+    SONY_SHUTTER_SPEED = 0xD20D  # u32 (numerator << 16) | denominator; 0 = bulb
+    SONY_PENDING_IMAGES = 0xD215  # >= 0x8000: an image waits in memory as 0xFFFFC001
+    SONY_ISO = 0xD21E  # low 24 bits; 0xFFFFFF = auto
+    SONY_HALF_PRESS = 0xD2C1  # 2 = press, 1 = release (autofocus button)
+    SONY_FULL_PRESS = 0xD2C2  # 2 = press, 1 = release (shutter button)
+
+
+class DataType(IntEnum):
+    INT8 = 0x0001
+    UINT8 = 0x0002
+    INT16 = 0x0003
+    UINT16 = 0x0004
+    INT32 = 0x0005
+    UINT32 = 0x0006
+    INT64 = 0x0007
+    UINT64 = 0x0008
+    STRING = 0xFFFF
+
+
+class ClassRequest(IntEnum):
+    """USB still-image class requests on the control endpoint (PIMA 15740 USB transport)."""
+
+    CANCEL = 0x64
+    GET_EXTENDED_EVENT_DATA = 0x65
+    DEVICE_RESET = 0x66
+    GET_DEVICE_STATUS = 0x67
+
+
+SONY_VENDOR_EXTENSION_ID = 0x11
+SONY_USB_VENDOR_ID = 0x054C
+SONY_A7_PC_REMOTE_PRODUCT_ID = 0x094C
+SONY_IN_MEMORY_OBJECT = 0xFFFFC001
+SONY_RAW_FORMAT = 0xB101
+SONY_PENDING_IMAGE_FLAG = 0x8000
+SONY_PROTOCOL_MODE_2 = 0xC8  # the A7's "old" SDIO protocol: notch stepping only
+CANCEL_EVENT_CODE = 0x4001  # the event code carried by a cancel request
+PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
+
+
+def name(code: int) -> str:
+    """A readable name for any code above, e.g. 'DEVICE_BUSY (0x2019)'."""
+    for enum in (Operation, Response, Event, Property):
+        try:
+            return f"{enum(code).name} (0x{code:04X})"
+        except ValueError:
+            continue
+    return f"0x{code:04X}"

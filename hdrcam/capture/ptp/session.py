@@ -1,0 +1,163 @@
+"""PTP sessions and transactions: command, optional data phase (either direction), response.
+
+OpenSession goes out with transaction id 0; later transactions count up from 1. A response that is not
+for the transaction in flight is a protocol error. DeviceBusy is retried with back-off; a timeout cancels
+the transaction (class request 0x64), waits for the device to report OK, and is retried once for
+operations that only read.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from hdrcam.capture.camera import CameraError
+from hdrcam.capture.ptp import codes
+from hdrcam.capture.ptp.codes import ContainerType, Operation, Response
+from hdrcam.capture.ptp.container import Container, command, data
+from hdrcam.capture.ptp.datasets import DeviceInfo, ObjectInfo
+from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport
+
+READ_ONLY_OPERATIONS = {Operation.GET_DEVICE_INFO, Operation.GET_OBJECT_INFO, Operation.GET_OBJECT,
+                        Operation.GET_DEVICE_PROP_DESC, Operation.GET_DEVICE_PROP_VALUE,
+                        Operation.SONY_GET_ALL_DEVICE_PROP_DATA, Operation.SONY_GET_SDIO_EXT_DEVICE_INFO}
+
+
+class ResponseError(CameraError):
+    """The camera answered a transaction with a response code other than OK."""
+
+    def __init__(self, operation: int, response_code: int):
+        self.operation, self.response_code = operation, response_code
+        super().__init__(f"the camera answered {codes.name(operation)} with {codes.name(response_code)}")
+
+
+class ProtocolError(CameraError):
+    """The camera sent something PTP does not allow at this point."""
+
+
+class Clock:
+    """Wall-clock time and sleep; the emulated camera substitutes a virtual clock."""
+
+    monotonic = staticmethod(time.monotonic)
+    sleep = staticmethod(time.sleep)
+
+
+class PtpSession:
+    def __init__(self, transport: UsbTransport, *, clock: Clock | None = None, timeout_s: float = 10.0,
+                 busy_retries: int = 8, busy_backoff_s: float = 0.25):
+        self.transport = transport
+        self.clock = clock or Clock()
+        self.timeout_s, self.busy_retries, self.busy_backoff_s = timeout_s, busy_retries, busy_backoff_s
+        self._next_transaction_id = 0
+        self.is_open = False
+        self.log: list[str] = []  # one line per retry, cancel or reset, for the capture manifest
+
+    # -- transactions --------------------------------------------------------------------------------------
+    def transact(self, operation: int, *params: int, data_out: bytes | None = None,
+                 timeout_s: float | None = None) -> tuple[Container, bytes]:
+        """Run one operation; returns (response, data received). Retries DeviceBusy; raises ResponseError."""
+        for attempt in range(self.busy_retries + 1):
+            try:
+                reply, payload = self._transaction(operation, params, data_out, timeout_s or self.timeout_s)
+            except TransportTimeout:
+                self._cancel_in_flight()
+                if operation not in READ_ONLY_OPERATIONS or attempt:
+                    raise
+                self.log.append(f"{codes.name(operation)} timed out; cancelled and retried")
+                continue
+            if reply.code == Response.DEVICE_BUSY and attempt < self.busy_retries:
+                self.log.append(f"{codes.name(operation)}: device busy, retry {attempt + 1}")
+                self.clock.sleep(self.busy_backoff_s * 2 ** min(attempt, 4))
+                continue
+            if reply.code != Response.OK:
+                raise ResponseError(operation, reply.code)
+            return reply, payload
+        raise ResponseError(operation, Response.DEVICE_BUSY)  # pragma: no cover - loop always returns or raises
+
+    def _transaction(self, operation: int, params, data_out: bytes | None,
+                     timeout_s: float) -> tuple[Container, bytes]:
+        transaction_id = self._take_transaction_id(operation)
+        timeout_ms = int(timeout_s * 1000)
+        self.transport.send(command(operation, transaction_id, *params), timeout_ms)
+        if data_out is not None:
+            self.transport.send(data(operation, transaction_id, data_out), timeout_ms)
+        payload = b""
+        reply = self.transport.receive(timeout_ms)
+        if reply.kind == ContainerType.DATA:
+            self._check_matches(reply, operation, transaction_id)
+            payload = reply.payload
+            reply = self.transport.receive(timeout_ms)
+        if reply.kind != ContainerType.RESPONSE:
+            raise ProtocolError(f"expected a response to {codes.name(operation)}, got a {reply.kind.name.lower()} "
+                                "container")
+        self._check_matches(reply, operation, transaction_id)
+        return reply, payload
+
+    def _take_transaction_id(self, operation: int) -> int:
+        if operation == Operation.OPEN_SESSION:
+            self._next_transaction_id = 1
+            return 0
+        transaction_id = self._next_transaction_id
+        self._next_transaction_id = (transaction_id + 1) % 0xFFFFFFFF or 1
+        return transaction_id
+
+    @staticmethod
+    def _check_matches(reply: Container, operation: int, transaction_id: int) -> None:
+        if reply.transaction_id != transaction_id:
+            raise ProtocolError(f"the camera answered transaction {reply.transaction_id} while "
+                                f"{codes.name(operation)} (transaction {transaction_id}) was in flight")
+        if reply.kind == ContainerType.DATA and reply.code != operation:
+            raise ProtocolError(f"data for {codes.name(reply.code)} arrived during {codes.name(operation)}")
+
+    def _cancel_in_flight(self) -> None:
+        """Cancel the last transaction and wait (up to 5 s) for the device to be idle again."""
+        transaction_id = self._next_transaction_id - 1
+        try:
+            self.transport.cancel(transaction_id)
+            deadline = self.clock.monotonic() + 5.0
+            while self.transport.status() != Response.OK:
+                if self.clock.monotonic() > deadline:
+                    raise CameraError("the camera stayed busy after a cancel; switch it off and on")
+                self.clock.sleep(0.1)
+        finally:
+            self.transport.clear_halts()
+
+    # -- operations ----------------------------------------------------------------------------------------
+    def open(self, session_id: int = 1) -> None:
+        try:
+            self.transact(Operation.OPEN_SESSION, session_id)
+        except ResponseError as error:
+            if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
+                raise
+        self.is_open = True
+
+    def close(self) -> None:
+        if self.is_open:
+            self.is_open = False
+            try:
+                self.transact(Operation.CLOSE_SESSION)
+            except CameraError:
+                pass  # closing must not hide the error that made us close
+
+    def device_info(self) -> DeviceInfo:
+        return DeviceInfo.unpack(self.transact(Operation.GET_DEVICE_INFO)[1])
+
+    def object_info(self, handle: int) -> ObjectInfo:
+        return ObjectInfo.unpack(self.transact(Operation.GET_OBJECT_INFO, handle)[1])
+
+    def get_object(self, handle: int, timeout_s: float = 60.0) -> bytes:
+        return self.transact(Operation.GET_OBJECT, handle, timeout_s=timeout_s)[1]
+
+    def wait_for_event(self, wanted: Callable[[Container], bool], timeout_s: float,
+                       poll: Callable[[], bool] | None = None, poll_interval_s: float = 0.2) -> Container | None:
+        """Read events until one is ``wanted`` (returned) or ``poll()`` says done (None); CameraError on timeout."""
+        deadline = self.clock.monotonic() + timeout_s
+        while self.clock.monotonic() < deadline:
+            event = self.transport.read_event(int(poll_interval_s * 1000))
+            if event is not None and wanted(event):
+                return event
+            if poll is not None and poll():
+                return None
+            if event is None and self.transport.interrupt_in is None:
+                self.clock.sleep(poll_interval_s)  # otherwise the interrupt read already waited
+        raise TransportTimeout(f"no capture event from the camera within {timeout_s:g} s")

@@ -1,0 +1,180 @@
+"""PTP over USB bulk pipes (PIMA 15740 USB still-image class), on pyusb.
+
+A transaction's phases are containers on the bulk pipes; a transfer whose length is an exact multiple of
+the endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Events arrive on
+the interrupt pipe. Class requests on the control pipe cancel a transaction, reset the device and read
+its status. USB failures become ``TransportTimeout`` or ``Disconnected``.
+"""
+
+from __future__ import annotations
+
+import errno
+import struct
+
+import usb.core
+import usb.util
+
+from hdrcam.capture.camera import CameraError
+from hdrcam.capture.ptp.codes import CANCEL_EVENT_CODE, PTP_INTERFACE, ClassRequest
+from hdrcam.capture.ptp.container import HEADER_SIZE, Container, parse_header
+
+READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
+_CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
+_CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
+
+
+class TransportTimeout(CameraError):
+    """The camera did not answer within the timeout."""
+
+
+class Disconnected(CameraError):
+    """The camera went away (cable, power, or it left PC-remote mode)."""
+
+
+def is_ptp_interface(interface) -> bool:
+    return (interface.bInterfaceClass, interface.bInterfaceSubClass, interface.bInterfaceProtocol) == PTP_INTERFACE
+
+
+class UsbTransport:
+    """Bulk-in, bulk-out and interrupt-in endpoints of a device's PTP interface."""
+
+    def __init__(self, device: usb.core.Device):
+        self.device = device
+        try:
+            if device.get_active_configuration() is None:
+                device.set_configuration()
+        except usb.core.USBError:
+            device.set_configuration()
+        configuration = device.get_active_configuration()
+        interface = usb.util.find_descriptor(configuration, custom_match=is_ptp_interface)
+        if interface is None:
+            raise CameraError("the USB device has no PTP (still image) interface")
+        self.interface_number = interface.bInterfaceNumber
+        self._detach_kernel_driver()
+        usb.util.claim_interface(device, self.interface_number)
+
+        def endpoint(direction, kind):
+            return usb.util.find_descriptor(interface, custom_match=lambda e: (
+                usb.util.endpoint_direction(e.bEndpointAddress) == direction
+                and usb.util.endpoint_type(e.bmAttributes) == kind))
+
+        self.bulk_in = endpoint(usb.util.ENDPOINT_IN, usb.util.ENDPOINT_TYPE_BULK)
+        self.bulk_out = endpoint(usb.util.ENDPOINT_OUT, usb.util.ENDPOINT_TYPE_BULK)
+        self.interrupt_in = endpoint(usb.util.ENDPOINT_IN, usb.util.ENDPOINT_TYPE_INTR)
+        if self.bulk_in is None or self.bulk_out is None:
+            raise CameraError("the PTP interface lacks its bulk endpoints")
+
+    def _detach_kernel_driver(self) -> None:
+        try:
+            if self.device.is_kernel_driver_active(self.interface_number):
+                self.device.detach_kernel_driver(self.interface_number)
+        except (NotImplementedError, usb.core.USBError):
+            pass  # not on Linux, or the backend does not manage kernel drivers
+
+    def close(self) -> None:
+        try:
+            usb.util.release_interface(self.device, self.interface_number)
+            usb.util.dispose_resources(self.device)
+        except usb.core.USBError:
+            pass
+
+    # -- bulk ------------------------------------------------------------------------------------------------
+    def send(self, container: Container, timeout_ms: int) -> None:
+        """Write one container, then a ZLP if its length is a multiple of the packet size."""
+        packet = container.pack()
+        with _usb_errors("sending", timeout_ms):
+            self.bulk_out.write(packet, timeout_ms)
+            if len(packet) % self.bulk_out.wMaxPacketSize == 0:
+                self.bulk_out.write(b"", timeout_ms)
+
+    def receive(self, timeout_ms: int) -> Container:
+        """Read one container (data or response).
+
+        A read ends at a short packet or when its buffer is full; a ZLP ending a transfer of whole packets
+        is consumed by the read it terminates, so it is read separately only when the last read filled
+        its buffer exactly.
+        """
+        packet_size = self.bulk_in.wMaxPacketSize
+        with _usb_errors("waiting for the camera", timeout_ms):
+            chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+            while not chunk:  # a stray ZLP left from an earlier transfer
+                chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+            length = parse_header(chunk)[0]
+            buffer = bytearray(chunk)
+            while len(buffer) < length and len(chunk) == READ_CHUNK_BYTES:
+                chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+                buffer += chunk
+            if len(buffer) == length and length % packet_size == 0 and len(chunk) == READ_CHUNK_BYTES:
+                self._read_zlp(timeout_ms)
+        if len(buffer) != length:
+            raise CameraError(f"the camera sent {len(buffer)} bytes of a {length}-byte container")
+        return Container.unpack(bytes(buffer))
+
+    def _read_zlp(self, timeout_ms: int) -> None:
+        if len(self.bulk_in.read(self.bulk_in.wMaxPacketSize, timeout_ms)) != 0:
+            raise CameraError("expected a zero-length packet after a transfer of whole packets")
+
+    # -- interrupt ---------------------------------------------------------------------------------------------
+    def read_event(self, timeout_ms: int) -> Container | None:
+        """One event container, or None if none arrives within the timeout."""
+        if self.interrupt_in is None:
+            return None
+        try:
+            packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
+        except usb.core.USBTimeoutError:
+            return None
+        except usb.core.USBError as error:
+            raise _translate(error, "reading events") from None
+        if len(packet) < HEADER_SIZE:
+            return None
+        return Container.unpack(packet[:parse_header(packet)[0]])
+
+    # -- control (class requests) ---------------------------------------------------------------------------
+    def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
+        with _usb_errors("cancelling", timeout_ms):
+            self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.CANCEL, 0, self.interface_number,
+                                      struct.pack("<HI", CANCEL_EVENT_CODE, transaction_id), timeout_ms)
+
+    def reset(self, timeout_ms: int = 2000) -> None:
+        with _usb_errors("resetting", timeout_ms):
+            self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.DEVICE_RESET, 0, self.interface_number, None,
+                                      timeout_ms)
+
+    def status(self, timeout_ms: int = 2000) -> int:
+        """The device's status response code (0x2001 OK, 0x2019 busy)."""
+        with _usb_errors("reading the status", timeout_ms):
+            reply = bytes(self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0,
+                                                    self.interface_number, 20, timeout_ms))
+        if len(reply) < 4:
+            raise CameraError("the camera's status reply is too short")
+        return struct.unpack_from("<HH", reply)[1]
+
+    def clear_halts(self) -> None:
+        for endpoint in (self.bulk_in, self.bulk_out):
+            try:
+                self.device.clear_halt(endpoint)
+            except usb.core.USBError:
+                pass
+
+
+class _usb_errors:
+    """Context manager turning pyusb errors into camera errors that say what was happening."""
+
+    def __init__(self, action: str, timeout_ms: int):
+        self.action, self.timeout_ms = action, timeout_ms
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if isinstance(error, usb.core.USBError):
+            raise _translate(error, self.action, self.timeout_ms) from None
+        return False
+
+
+def _translate(error: usb.core.USBError, action: str, timeout_ms: int | None = None) -> CameraError:
+    if isinstance(error, usb.core.USBTimeoutError) or error.errno == errno.ETIMEDOUT:
+        return TransportTimeout(f"the camera did not answer within {timeout_ms / 1000:g} s while {action}")
+    if error.errno in (errno.ENODEV, errno.EIO, errno.ENOENT) or "No such device" in str(error):
+        return Disconnected(f"the camera disconnected while {action} ({error})")
+    return CameraError(f"USB error while {action}: {error}")

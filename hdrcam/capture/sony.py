@@ -1,0 +1,212 @@
+"""``--camera usb``: a Sony A7 in PC-remote mode over PTP/USB, with Sony's SDIO extension (REFERENCE.md sec. 4).
+
+Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo (vendor extension 0x11),
+the SDIO handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every
+property descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
+stepped one notch at a time with 0x9207; each step is polled through 0x9209 until the value lands, and an
+overshoot is stepped back. Capture: drain a pending in-memory image, half press, full press, release,
+wait for event 0xC201 (or 0xD215 >= 0x8000), then GetObjectInfo and GetObject on 0xFFFFC001.
+All vendor quirks live here; the generic PTP layer knows nothing of Sony.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import struct
+from pathlib import Path
+
+import usb.core
+
+from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
+from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, nearest_iso, nearest_shutter, shutter_from_ptp
+from hdrcam.capture.ptp.codes import (SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_PROTOCOL_MODE_2,
+                                      SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, Event, Operation, Property)
+from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
+from hdrcam.capture.ptp.session import Clock, PtpSession
+from hdrcam.capture.ptp.transport import UsbTransport, is_ptp_interface
+from hdrcam.io.atomic import write_bytes_atomic
+from hdrcam.io.raw import read_raw
+
+STEP_POLL_INTERVAL_S = 0.1
+STEP_TIMEOUT_S = 3.0  # a notch lands in ~0.7 s on an A7
+CAPTURE_TIMEOUT_S = 35.0  # plus the exposure time
+_PRESS, _RELEASE = 2, 1
+
+
+def find_sony_camera(backend=None) -> usb.core.Device:
+    """The first Sony USB device with a PTP interface; CameraNotFound with advice otherwise."""
+    def has_ptp_interface(device) -> bool:
+        try:
+            return any(is_ptp_interface(interface) for configuration in device for interface in configuration)
+        except usb.core.USBError:
+            return False
+
+    try:
+        device = usb.core.find(idVendor=SONY_USB_VENDOR_ID, custom_match=has_ptp_interface, backend=backend)
+    except usb.core.NoBackendError:
+        raise CameraNotFound("no USB backend: install libusb (e.g. 'pip install libusb-package') to reach a "
+                             "real camera") from None
+    if device is None:
+        raise CameraNotFound("no Sony camera found on USB: connect the A7, set USB Connection to 'PC Remote', "
+                             "and check the cable (or use --camera sim)")
+    return device
+
+
+class TerminalLensCover:
+    """Asks the user at the terminal to cover or uncover the lens when that must change."""
+
+    def __init__(self):
+        self.covered = False
+
+    def __call__(self, covered: bool) -> None:
+        if covered != self.covered:
+            input("Cover the lens for dark frames, then press Enter " if covered else
+                  "Uncover the lens, then press Enter ")
+            self.covered = covered
+
+
+def _step_data(direction: int) -> bytes:
+    """0x9207 payload for one notch: u8 +1 (0x01) or -1 (0xFF)."""
+    return struct.pack("<b", direction)
+
+
+class SonyA7Camera:
+    """A Sony A7 over USB (Camera protocol)."""
+
+    suffix_default = ".arw"
+
+    def __init__(self, device: usb.core.Device | None = None, *, backend=None, clock: Clock | None = None,
+                 cover_lens=None):
+        self._device = device if device is not None else find_sony_camera(backend)
+        self.clock = clock or Clock()
+        self.cover_lens = cover_lens or TerminalLensCover()
+        self.model = "Sony camera"
+        self.session: PtpSession | None = None
+        self.properties: dict[int, PropertyDescriptor] = {}
+        self.protocol_version = 0
+        self._step_sign = {Property.SONY_SHUTTER_SPEED: 1, Property.SONY_ISO: 1}
+
+    # -- life cycle ------------------------------------------------------------------------------------------
+    def __enter__(self) -> "SonyA7Camera":
+        self.session = PtpSession(UsbTransport(self._device), clock=self.clock)
+        try:
+            self._handshake()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.session is not None:
+            self.session.close()
+            self.session.transport.close()
+            self.session = None
+
+    def _handshake(self) -> None:
+        session = self.session
+        session.open(1)
+        info = session.device_info()
+        if info.vendor_extension_id != SONY_VENDOR_EXTENSION_ID:
+            raise CameraError(f"{info.manufacturer} {info.model} is not a Sony camera (vendor extension "
+                              f"0x{info.vendor_extension_id:X})")
+        self.model = f"{info.manufacturer} {info.model}".strip()
+        session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
+        session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
+        _, version = session.transact(Operation.SONY_GET_SDIO_EXT_DEVICE_INFO, SONY_PROTOCOL_MODE_2)
+        if len(version) < 2:
+            raise CameraError("the camera's SDIO extension info is empty; is it in PC Remote mode?")
+        self.protocol_version = struct.unpack_from("<H", version)[0]
+        session.transact(Operation.SONY_SDIO_CONNECT, 3, 0, 0)
+        self.refresh()
+        if self._current(Property.SONY_SHUTTER_SPEED) == 0:
+            raise CameraError("the shutter is on Bulb: set the mode dial to M and a shutter time "
+                              "(Bulb's hot-pixel filter flattens a PSF core)")
+
+    def refresh(self) -> dict[int, PropertyDescriptor]:
+        """Read every property descriptor (0x9209)."""
+        self.properties = unpack_sony_properties(self.session.transact(Operation.SONY_GET_ALL_DEVICE_PROP_DATA)[1])
+        return self.properties
+
+    def _current(self, code: int) -> int:
+        if code not in self.properties:
+            raise CameraError(f"the camera does not report property 0x{code:04X}")
+        return self.properties[code].current
+
+    # -- exposure --------------------------------------------------------------------------------------------
+    def settings(self) -> ExposureSettings:
+        notch = shutter_from_ptp(self._current(Property.SONY_SHUTTER_SPEED))
+        iso = self._current(Property.SONY_ISO) & 0xFFFFFF
+        f_number = self._current(Property.F_NUMBER) / 100.0 if Property.F_NUMBER in self.properties else float("nan")
+        return ExposureSettings(float(notch.nominal), notch.label, float(iso), f_number)
+
+    def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
+        if exposure_s is not None:
+            target = nearest_shutter(exposure_s).index
+            self._step_to(Property.SONY_SHUTTER_SPEED, target,
+                          lambda value: shutter_from_ptp(value).index, len(SHUTTER_NOTCHES))
+        if iso is not None:
+            target_iso = nearest_iso(iso)
+            self._step_to(Property.SONY_ISO, ISO_VALUES.index(target_iso), self._iso_index, len(ISO_VALUES))
+        return self.settings()
+
+    @staticmethod
+    def _iso_index(value: int) -> int:
+        value &= 0xFFFFFF
+        if value not in ISO_VALUES:
+            raise CameraError("ISO is on Auto or an extended value: set a fixed ISO between 100 and 25600")
+        return ISO_VALUES.index(value)
+
+    def _step_to(self, code: int, target: int, index_of, notches: int) -> None:
+        """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot."""
+        budget = 2 * notches
+        position = index_of(self._current(code))
+        while position != target:
+            if budget == 0:
+                raise CameraError(f"could not step property 0x{code:04X} to notch {target} (stuck at {position})")
+            budget -= 1
+            direction = 1 if target > position else -1
+            self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, code,
+                                  data_out=_step_data(direction * self._step_sign[code]))
+            landed = self._wait_for_change(code, position, index_of)
+            if (landed - position) * direction < 0:  # the camera counts the other way: learn it
+                self._step_sign[code] = -self._step_sign[code]
+            position = landed  # an overshoot is stepped back on the next pass
+
+    def _wait_for_change(self, code: int, position: int, index_of) -> int:
+        deadline = self.clock.monotonic() + STEP_TIMEOUT_S
+        while self.clock.monotonic() < deadline:
+            self.clock.sleep(STEP_POLL_INTERVAL_S)
+            landed = index_of(self.refresh()[code].current)
+            if landed != position:
+                return landed
+        raise CameraError(f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a step; is the "
+                          "mode dial on M?")
+
+    # -- capture ---------------------------------------------------------------------------------------------
+    def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:
+        self.cover_lens(dark)
+        session = self.session
+        settings = self.settings()
+        self._drain_pending_image()
+        for button, state in ((Property.SONY_HALF_PRESS, _PRESS), (Property.SONY_FULL_PRESS, _PRESS),
+                              (Property.SONY_FULL_PRESS, _RELEASE), (Property.SONY_HALF_PRESS, _RELEASE)):
+            session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, button, data_out=struct.pack("<H", state))
+        timestamp = dt.datetime.now().replace(microsecond=0)
+        session.wait_for_event(lambda event: event.code == Event.SONY_OBJECT_ADDED,
+                               CAPTURE_TIMEOUT_S + settings.exposure_s, poll=self._image_pending)
+        info = session.object_info(SONY_IN_MEMORY_OBJECT)
+        content = session.get_object(SONY_IN_MEMORY_OBJECT)
+        if len(content) != info.compressed_size:
+            raise CameraError(f"downloaded {len(content)} bytes of {info.filename}, expected {info.compressed_size}")
+        suffix = Path(info.filename).suffix.lower() or self.suffix_default
+        path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
+        return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
+
+    def _image_pending(self) -> bool:
+        return self.refresh()[Property.SONY_PENDING_IMAGES].current >= SONY_PENDING_IMAGE_FLAG
+
+    def _drain_pending_image(self) -> None:
+        """An image left in the camera's memory would be returned instead of the next one: fetch and drop it."""
+        while self._image_pending():
+            self.session.object_info(SONY_IN_MEMORY_OBJECT)
+            self.session.get_object(SONY_IN_MEMORY_OBJECT)
