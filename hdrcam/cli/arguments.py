@@ -30,6 +30,33 @@ def positive_int(text: str) -> int:
     return value
 
 
+def exposure_seconds(text: str) -> float:
+    """A shutter time in seconds: '1/4000', '0.5' or '2'."""
+    numerator, _, denominator = text.partition("/")
+    try:
+        value = float(numerator) / float(denominator) if denominator else float(numerator)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"expected seconds such as 1/4000 or 0.5, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def integers(count: int, separator: str = ","):
+    """An argument type for ``count`` non-negative integers, e.g. '10,20,300,200' or '1024x768' (separator x)."""
+    def parse(text: str) -> tuple[int, ...]:
+        parts = text.lower().split(separator)
+        try:
+            values = tuple(int(part) for part in parts)
+        except ValueError:
+            values = ()
+        if len(values) != count or min(values) < 0:
+            raise argparse.ArgumentTypeError(f"expected {count} non-negative integers separated by "
+                                             f"{separator!r}, got {text!r}")
+        return values
+    return parse
+
+
 def add_profile_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", default=DEFAULT_PROFILE,
                         help=f"capture profile name or .toml path (default {DEFAULT_PROFILE})")

@@ -1,0 +1,94 @@
+"""RAW ingest: read a folder of RAW files and group them into exposure brackets.
+
+A bracket is a run of frames from one camera at one ISO, aperture and frame size, taken close together
+(no gap longer than ``max_gap_s`` plus the previous exposure), with distinct exposure times; a repeated
+exposure starts the next bracket. Brackets shot alternately (e.g. at two ISOs) are separated by their
+settings. A file that fits no bracket, or cannot be read, is reported - never silently dropped.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
+from hdrcam.errors import InputError
+from hdrcam.io.raw import RAW_SUFFIXES, RawMetadata, read_raw_metadata
+
+DEFAULT_MAX_GAP_S = 10.0
+
+
+@dataclasses.dataclass
+class IngestResult:
+    brackets: list[list[RawMetadata]]
+    report: list[str]  # one line per file that is not in a bracket
+
+
+def raw_files(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        raise InputError(f"{folder}: not a folder")
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in RAW_SUFFIXES)
+
+
+def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
+    by_settings: dict[tuple, list[RawMetadata]] = {}
+    for frame in frames:
+        key = (frame.camera_model, frame.iso, round(frame.f_number or 0.0, 1), frame.width_px, frame.height_px)
+        by_settings.setdefault(key, []).append(frame)
+    brackets, report = [], []
+    for group in by_settings.values():
+        group.sort(key=lambda f: (f.timestamp is None, f.timestamp or 0, f.path.name))
+        current: list[RawMetadata] = []
+        for frame in group:
+            if current and (_too_late(current[-1], frame, max_gap_s)
+                            or any(_same_exposure(frame, other) for other in current)):
+                _close(current, brackets, report, max_gap_s)
+                current = []
+            current.append(frame)
+        _close(current, brackets, report, max_gap_s)
+    brackets.sort(key=lambda b: (b[0].timestamp is None, b[0].timestamp or 0, b[0].path.name))
+    return IngestResult(brackets, report)
+
+
+def _too_late(previous: RawMetadata, frame: RawMetadata, max_gap_s: float) -> bool:
+    if previous.timestamp is None or frame.timestamp is None:
+        return False
+    return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + previous.exposure_s
+
+
+def _same_exposure(a: RawMetadata, b: RawMetadata) -> bool:
+    return abs(a.exposure_s - b.exposure_s) <= 1e-3 * max(a.exposure_s, b.exposure_s)
+
+
+def _close(current: list[RawMetadata], brackets: list, report: list[str], max_gap_s: float) -> None:
+    if len(current) >= 2:
+        brackets.append(current)
+    elif current:
+        frame = current[0]
+        report.append(f"not in a bracket: {frame.path.name} (ISO {frame.iso or '?'}, f/{frame.f_number or '?'}, "
+                      f"{frame.exposure_s:g} s): no other frame with these settings within {max_gap_s:g} s")
+
+
+def ingest_folder(folder: Path, max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
+    """Read every RAW file in ``folder`` and group them; unreadable files go to the report."""
+    frames, unreadable = [], []
+    for path in raw_files(folder):
+        try:
+            frames.append(read_raw_metadata(path))
+        except InputError as error:
+            unreadable.append(f"skipped: {error}")
+    result = group_brackets(frames, max_gap_s)
+    result.report = unreadable + result.report
+    return result
+
+
+def bracket_manifest(frames: list[RawMetadata], manifest_folder: Path, options: dict) -> Bracket:
+    """A manifest for ingested frames; file names relative to ``manifest_folder``."""
+    ordered = sorted(frames, key=lambda f: f.exposure_s)
+    return Bracket(kind="light", camera={"backend": "ingest", "model": ordered[0].camera_model}, profile=None,
+                   frames=[BracketFrame(file=os.path.relpath(f.path, manifest_folder), sha256=sha256_of(f.path),
+                                        exposure_s=f.exposure_s, exposure_label=f"{f.exposure_s:g}",
+                                        iso=f.iso or 0.0, f_number=f.f_number or 0.0,
+                                        timestamp=f.timestamp.isoformat() if f.timestamp else "")
+                           for f in ordered], options=options)
