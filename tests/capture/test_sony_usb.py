@@ -1,0 +1,131 @@
+"""The usb code path against the emulated A7: handshake, ZLPs, notch stepping, capture, and injected faults."""
+
+from __future__ import annotations
+
+import pytest
+import usb.backend
+
+from hdrcam.capture.camera import CameraNotFound
+from hdrcam.capture.emulator import BULK_PACKET_BYTES, Faults
+from hdrcam.capture.notches import SHUTTER_NOTCHES
+from hdrcam.capture.ptp.codes import Operation, Response
+from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
+from hdrcam.capture.ptp.session import ProtocolError, ResponseError
+from hdrcam.capture.ptp.transport import READ_CHUNK_BYTES, Disconnected, TransportTimeout
+from hdrcam.capture.sony import find_sony_camera
+from tests.capture.helpers import small_camera
+
+
+def emulated(**faults):
+    camera, _ = small_camera("sim-usb", faults=Faults(**faults))
+    return camera
+
+
+def test_handshake_reads_model_protocol_and_properties():
+    with emulated() as camera:
+        assert camera.model == "Sony Corporation ILCE-7"
+        assert camera.protocol_version == 0xC8
+        assert camera.settings().exposure_label == "1/60"
+
+
+@pytest.mark.parametrize("overshoot_every", [0, 2])
+def test_notch_stepping_lands_on_the_target_despite_reversed_direction_and_overshoot(overshoot_every):
+    with emulated(overshoot_every=overshoot_every) as camera:
+        assert camera.set_exposure(exposure_s=1 / 4000).exposure_label == "1/4000"
+        assert camera.set_exposure(exposure_s=2.0).exposure_label == '2"'
+        assert camera.set_exposure(iso=400).iso == 400
+
+
+@pytest.mark.parametrize("payload_bytes", [1, BULK_PACKET_BYTES - HEADER_SIZE, 2 * BULK_PACKET_BYTES - HEADER_SIZE,
+                                           READ_CHUNK_BYTES - HEADER_SIZE, READ_CHUNK_BYTES + 100])
+def test_receive_handles_short_packets_and_zero_length_packets(payload_bytes):
+    """Containers of whole packets end with a ZLP; the next container must still be read intact."""
+    with emulated() as camera:
+        transport, emulator = camera.session.transport, emulator_of(camera)
+        payload = bytes(range(256)) * (payload_bytes // 256) + bytes(payload_bytes % 256)
+        for container in (data(0x1009, 42, payload), response(Response.OK, 42)):
+            packed = container.pack()
+            emulator.in_pipe.queue(packed)
+            if len(packed) % BULK_PACKET_BYTES == 0:
+                emulator.in_pipe.queue(b"")  # the device's ZLP
+        assert transport.receive(1000).payload == payload
+        assert transport.receive(1000) == response(Response.OK, 42)
+        assert not emulator.in_pipe.transfers
+
+
+def test_capture_downloads_the_in_memory_image(tmp_path):
+    with emulated() as camera:
+        frame = camera.capture(tmp_path, "frame")
+        assert frame.path.suffix == ".dng" and frame.raw.bayer_dn.shape == (48, 64)
+        assert frame.raw.metadata.black_level_dn == (512.0,) * 4
+
+
+def test_device_busy_is_retried(tmp_path):
+    with emulated(busy=3) as camera:
+        assert camera.capture(tmp_path, "frame").path.is_file()
+        assert sum("device busy" in line for line in camera.session.log) == 3
+
+
+def test_a_lost_read_only_answer_is_cancelled_and_retried(tmp_path):
+    with emulated(silent_operation=Operation.GET_OBJECT_INFO) as camera:
+        assert camera.capture(tmp_path, "frame").path.is_file()
+        assert any("cancelled and retried" in line for line in camera.session.log)
+
+
+def test_a_lost_answer_to_a_command_that_changes_state_is_a_clear_timeout():
+    with emulated(silent_operation=Operation.SONY_SET_CONTROL_DEVICE_B) as camera:
+        with pytest.raises(TransportTimeout, match="did not answer"):
+            camera.set_exposure(exposure_s=1 / 125)
+
+
+def test_disconnect_during_download_leaves_no_file(tmp_path):
+    with pytest.raises(Disconnected, match="disconnected"):
+        with emulated(disconnect_during_download=True) as camera:
+            camera.capture(tmp_path, "frame")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_answer_for_another_transaction_is_a_protocol_error(tmp_path):
+    with emulated(wrong_transaction_operation=Operation.GET_OBJECT_INFO) as camera:
+        with pytest.raises(ProtocolError, match="transaction"):
+            camera.capture(tmp_path, "frame")
+    assert list(tmp_path.iterdir()) == []
+
+
+def emulator_of(camera):
+    return camera.session.transport.device._ctx.backend.camera
+
+
+def test_busy_forever_gives_up_with_the_response_code():
+    with emulated() as camera:
+        emulator_of(camera).faults.busy = 100
+        with pytest.raises(ResponseError, match="DEVICE_BUSY"):
+            camera.refresh()
+
+
+class _NoDevices(usb.backend.IBackend):
+    def enumerate_devices(self):
+        return iter(())
+
+
+def test_missing_camera_is_a_clear_error():
+    with pytest.raises(CameraNotFound, match="no Sony camera found"):
+        find_sony_camera(_NoDevices())
+
+
+def test_every_notch_has_a_distinct_encoding():
+    values = [notch.ptp_value for notch in SHUTTER_NOTCHES]
+    assert len(set(values)) == len(values) == 55
+
+
+def test_send_ends_a_transfer_of_whole_packets_with_a_zlp():
+    """The device only sees a 512-byte container once the ZLP arrives; without it the transfer stays open."""
+    container = data(Operation.SONY_SET_CONTROL_DEVICE_B, 99, bytes(BULK_PACKET_BYTES - HEADER_SIZE))
+    with emulated() as camera:
+        transport, emulator = camera.session.transport, emulator_of(camera)
+        transport.bulk_out.write(container.pack())
+        assert len(emulator._out_transfer) == BULK_PACKET_BYTES  # still waiting for the end of the transfer
+        transport.bulk_out.write(b"")
+        assert len(emulator._out_transfer) == 0
+        transport.send(container, 1000)
+        assert len(emulator._out_transfer) == 0
