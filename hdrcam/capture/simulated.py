@@ -6,7 +6,9 @@ charge in proportion to the exposure; the ADC adds the black level (512) and cli
 (14 bit). The shutter lands on the A7's 1/3 EV notches, whose true times (powers of two) differ from their
 labels, plus a small per-notch error; the written DNG says the label, like a real camera.
 
-Units: scene radiance 1.0 fills the full well at base ISO in ``reference_exposure_s`` seconds.
+Units: scene radiance 1.0 fills the full well at base ISO in ``reference_exposure_s`` seconds. The profile's
+``full_well_e`` is the charge at the white level at base ISO; the pixel itself saturates 5 % higher, so a
+clipped pixel reads exactly the white level, as on real cameras whose ADC clips first.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ SONY_A7_XYZ_TO_CAMERA = np.array([[0.5271, -0.0712, -0.0347], [-0.6153, 1.3653, 
 SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
 BASE_ISO = 100
 DEFAULT_REFERENCE_EXPOSURE_S = 1.0 / 60.0
+FULL_WELL_HEADROOM = 1.05  # pixels hold 5 % more charge than the ADC's white level: clipped pixels read white
 
 
 def camera_from_srgb(xyz_to_camera: np.ndarray = SONY_A7_XYZ_TO_CAMERA) -> np.ndarray:
@@ -124,8 +127,9 @@ class SimulatedCamera:
         exposure = self.true_exposure_s()
         charge = self._rate(dark) * (exposure / self.reference_exposure_s)  # full wells collected
         charge[self.defects.hot_pixel_rows, self.defects.hot_pixel_columns] += self.defects.hot_pixel_rate_per_s * exposure
-        electrons = rng.poisson(np.minimum(charge, 1.0) * camera.full_well_e).astype(np.float32)
-        electrons = np.minimum(electrons, camera.full_well_e)
+        capacity_e = camera.full_well_e * FULL_WELL_HEADROOM
+        electrons = rng.poisson(np.minimum(charge, 2 * FULL_WELL_HEADROOM) * camera.full_well_e).astype(np.float32)
+        electrons = np.minimum(electrons, capacity_e)
         electrons += rng.standard_normal(electrons.shape, dtype=np.float32) * np.float32(camera.read_noise_e)
         dn_per_electron = (camera.white_level_dn - camera.black_level_dn) * gain / camera.full_well_e
         digital = np.rint(camera.black_level_dn + electrons * np.float32(dn_per_electron))
@@ -175,7 +179,11 @@ def camera_irradiance(scene: Scene, psf: np.ndarray) -> np.ndarray:
 
 
 def _add_point(irradiance: np.ndarray, psf: np.ndarray, x_px: float, y_px: float, power: np.ndarray) -> None:
-    """Add a PSF per channel, moved by a band-limited (Fourier) shift so its centre lands on (x, y)."""
+    """Add a PSF per channel, moved by a band-limited (Fourier) shift so its centre lands on (x, y).
+
+    A PSF sampled at the pixel pitch is not band-limited, so the shift rings a little; negative lobes are
+    clipped and the channel rescaled so the source's energy is exact.
+    """
     size_y, size_x = psf.shape[1:]
     column, row = math.floor(x_px), math.floor(y_px)
     shift = (y_px - row, x_px - column)
@@ -183,6 +191,8 @@ def _add_point(irradiance: np.ndarray, psf: np.ndarray, x_px: float, y_px: float
     for channel in range(3):
         padded = np.pad(psf[channel].astype(np.float64), pad)
         moved = np.fft.ifft2(scipy.ndimage.fourier_shift(np.fft.fft2(padded), shift)).real
+        moved = np.clip(moved, 0.0, None)
+        moved *= padded.sum() / max(moved.sum(), 1e-30)
         top, left = row - size_y // 2 - pad, column - size_x // 2 - pad
         _add_clipped(irradiance[channel], moved * power[channel], top, left)
 
