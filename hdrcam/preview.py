@@ -27,3 +27,16 @@ def side_by_side(images: list[np.ndarray], height_px: int = 512, gap_px: int = 8
         panels.append(cv2.resize(image, (width, height_px), interpolation=cv2.INTER_NEAREST))
         panels.append(np.full((height_px, gap_px, 3), 255, np.uint8))
     return np.concatenate(panels[:-1], axis=1)
+
+
+def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18) -> np.ndarray:
+    """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``)."""
+    rgb = np.nan_to_num(np.clip(np.asarray(hdr_rgb, np.float64), 0.0, None), posinf=0.0)
+    luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    log_average = np.exp(np.mean(np.log(luminance + 1e-6)))
+    scaled = luminance * (key / log_average)
+    compressed = scaled / (1.0 + scaled)
+    display = rgb * (compressed / np.maximum(luminance, 1e-12))[..., None]
+    encoded = np.where(display <= 0.0031308, 12.92 * display, 1.055 * np.power(np.clip(display, 0.0031308, None),
+                                                                                  1 / 2.4) - 0.055)
+    return np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)

@@ -25,24 +25,16 @@ import torch
 from hdrcam.capture.camera import CapturedFrame, ExposureSettings
 from hdrcam.capture.notches import ShutterNotch, nearest_iso, nearest_shutter
 from hdrcam.capture.scene import Scene
+from hdrcam.colorimetry import SONY_A7_XYZ_TO_CAMERA, camera_from_srgb
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.dng import dng_bytes
 from hdrcam.io.raw import read_raw
 from hdrcam.profiles import Profile
 from hdrcam.sensor import bayer_mosaic, fft_convolve
 
-# XYZ (D65) -> camera RGB of the Sony ILCE-7 (the matrix LibRaw uses for this model), and sRGB -> XYZ.
-SONY_A7_XYZ_TO_CAMERA = np.array([[0.5271, -0.0712, -0.0347], [-0.6153, 1.3653, 0.2763], [-0.1601, 0.2366, 0.7242]])
-SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
 BASE_ISO = 100
 DEFAULT_REFERENCE_EXPOSURE_S = 1.0 / 60.0
 FULL_WELL_HEADROOM = 1.05  # pixels hold 5 % more charge than the ADC's white level: clipped pixels read white
-
-
-def camera_from_srgb(xyz_to_camera: np.ndarray = SONY_A7_XYZ_TO_CAMERA) -> np.ndarray:
-    """3 x 3 linear sRGB -> camera RGB, scaled so white gives the as-shot neutral (max channel 1)."""
-    matrix = xyz_to_camera @ SRGB_TO_XYZ
-    return matrix / (matrix @ np.ones(3)).max()
 
 
 @dataclasses.dataclass(frozen=True)

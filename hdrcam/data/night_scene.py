@@ -24,12 +24,12 @@ def night_scene(height_px: int, width_px: int, seed: int = 0, sources: int = 12)
 
 
 def _background(height_px: int, width_px: int, rng: np.random.Generator) -> np.ndarray:
-    """Smooth multi-scale texture (sum of blurred noise octaves), tinted, between about 0.005 and 0.3."""
+    """Multi-scale texture (noise octaves, amplitude growing with scale), tinted, between about 0.005 and 0.3."""
     texture = np.zeros((height_px, width_px), np.float32)
     for octave in range(1, 6):
         scale = 2 ** octave
         small = rng.random((max(2, height_px // scale), max(2, width_px // scale))).astype(np.float32)
-        texture += cv2.resize(small, (width_px, height_px), interpolation=cv2.INTER_CUBIC) / octave
+        texture += cv2.resize(small, (width_px, height_px), interpolation=cv2.INTER_CUBIC) * scale  # ~1/f
     texture = (texture - texture.min()) / max(float(np.ptp(texture)), 1e-6)
     level = 0.005 * (60.0 ** texture)  # log-uniform-ish from 0.005 to 0.3
     tint = rng.uniform(0.7, 1.0, 3).astype(np.float32)

@@ -1,0 +1,59 @@
+"""The frames of a bracket, read and checked: same size, CFA, ISO and aperture; distinct exposures.
+
+A bracket is a bracket.json (or a folder holding one), a folder of RAW files, or a list of RAW files; without
+a manifest the exposures come from the files' metadata. Frames are sorted from shortest to longest.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hdrcam.capture.ingest import raw_files
+from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket
+from hdrcam.errors import InputError
+from hdrcam.io.raw import RawFrame, read_raw
+
+
+def bracket_paths(sources: list[Path]) -> list[Path]:
+    """RAW paths of a bracket given as a manifest, a folder or files."""
+    if len(sources) == 1 and (sources[0].suffix == ".json" or (sources[0] / MANIFEST_NAME).is_file()):
+        bracket = load_bracket(sources[0])
+        if bracket.status != "complete":
+            raise InputError(f"{sources[0]}: the capture {bracket.status}: {bracket.error}")
+        return bracket.paths()
+    if len(sources) == 1 and sources[0].is_dir():
+        return raw_files(sources[0])
+    return list(sources)
+
+
+def read_bracket(sources: list[Path]) -> list[RawFrame]:
+    """Read and check every frame; InputError naming the offending file otherwise."""
+    paths = bracket_paths(sources)
+    if len(paths) < 1:
+        raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
+    frames = sorted((read_raw(path) for path in paths), key=lambda f: f.metadata.exposure_s)
+    reference = frames[0].metadata
+    for frame in frames[1:]:
+        meta = frame.metadata
+        checks = (("frame size", (meta.width_px, meta.height_px), (reference.width_px, reference.height_px)),
+                  ("CFA pattern", meta.cfa_pattern, reference.cfa_pattern),
+                  ("ISO", meta.iso, reference.iso),
+                  ("aperture", _rounded(meta.f_number), _rounded(reference.f_number)))
+        for what, value, expected in checks:
+            if value != expected:
+                raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
+                                 "a bracket varies only the shutter")
+    exposures = [f.metadata.exposure_s for f in frames]
+    if len(set(exposures)) != len(exposures):
+        raise InputError("two frames of the bracket have the same exposure time: "
+                         + ", ".join(f"{f.metadata.path.name} {f.metadata.exposure_s:g} s" for f in frames))
+    for frame in frames:
+        if not np.isfinite(frame.metadata.exposure_s):
+            raise InputError(f"{frame.metadata.path}: exposure time is not finite")
+    return frames
+
+
+def _rounded(f_number: float | None) -> float | None:
+    return None if f_number is None else round(f_number, 1)

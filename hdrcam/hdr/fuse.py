@@ -1,0 +1,79 @@
+"""A bracket (and optional darks) -> linear HDR image: merge on Bayer data, demosaic, colour.
+
+Output channels: R, G, B in linear sRGB primaries (or camera RGB with ``camera_rgb``), relative radiance
+(full wells per second at ISO 100); ``clipped`` = 1 where some CFA sample feeding the pixel was clipped in
+every frame (its value is a lower bound); optional per-channel variance.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.colorimetry import camera_to_srgb_matrix
+from hdrcam.errors import InputError
+from hdrcam.hdr.bracket_input import read_bracket
+from hdrcam.hdr.demosaic import demosaic_bilinear
+from hdrcam.hdr.merge import BayerMerge, merge_bayer
+from hdrcam.io.raw import RawFrame
+from hdrcam.profiles import CameraSpec
+
+UNITS = "relative radiance: full wells per second at ISO 100"
+
+
+@dataclasses.dataclass
+class FusedImage:
+    rgb: np.ndarray  # H x W x 3 float32
+    clipped: np.ndarray  # H x W bool
+    variance: np.ndarray | None  # H x W x 3 float32 (demosaiced variance of the Bayer merge), if asked for
+    merge: BayerMerge
+    frames: list[RawFrame]
+    colour: str  # "linear sRGB (D65)" or "camera RGB"
+
+    def attributes(self) -> dict:
+        return {"units": UNITS, "colour": self.colour,
+                "frames": ", ".join(f.metadata.path.name for f in self.frames),
+                "labelled_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.labelled_exposures_s),
+                "estimated_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.exposures_s),
+                "clip_level_dn": float(self.merge.clip_level_dn)}
+
+
+def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[RawFrame | None] | None:
+    """A dark frame per light frame, matched by exposure time; InputError when one is missing."""
+    if darks_source is None:
+        return None
+    darks = read_bracket([darks_source])
+    matched = []
+    for frame in frames:
+        exposure = frame.metadata.exposure_s
+        dark = min(darks, key=lambda d: abs(np.log(d.metadata.exposure_s / exposure)))
+        if abs(dark.metadata.exposure_s / exposure - 1) > 0.01:
+            raise InputError(f"{darks_source}: no dark frame at {exposure:g} s for {frame.metadata.path.name}")
+        matched.append(dark)
+    return matched
+
+
+def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,
+         with_variance: bool = False) -> FusedImage:
+    frames = read_bracket(sources)
+    longest = frames[-1].bayer_dn
+    white = frames[-1].metadata.white_level_dn
+    if all(int(frame.bayer_dn.min()) >= white - 1 for frame in frames):
+        raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
+    del longest
+    merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks))
+    meta = frames[0].metadata
+    rgb = demosaic_bilinear(merge.rate, meta.cfa_pattern)
+    variance = demosaic_bilinear(merge.variance.clip(max=1e30), meta.cfa_pattern) if with_variance else None
+    clipped = cv2.dilate(merge.clipped_everywhere.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    colour = "camera RGB"
+    if not camera_rgb:
+        matrix = camera_to_srgb_matrix(meta.xyz_to_camera, meta.as_shot_neutral).astype(np.float32)
+        rgb = rgb @ matrix.T
+        if variance is not None:
+            variance = variance @ (matrix ** 2).T
+        colour = "linear sRGB (D65)"
+    return FusedImage(rgb.astype(np.float32), clipped, variance, merge, frames, colour)

@@ -1,0 +1,168 @@
+"""Merge a RAW bracket into linear HDR on the Bayer data (before demosaicing).
+
+Per frame k with exposure t_k, black-subtracted signal y_k (DN) estimates the rate x = y_k / t_k. Under
+the linear sensor's noise model, Var(y_k) = g * E[y_k] + r^2 (g DN per electron, r read noise in DN), the
+minimum-variance unbiased combination weights each sample by its inverse variance, t_k^2 / Var(y_k)
+(Granados et al. 2010); variances are evaluated at the pooled estimate (a second pass) so the weights do
+not favour samples that happen to be low. Clipped samples (above the measured clip level minus a
+margin, dilated so their neighbours are not trusted either) get no weight; a pixel clipped in every frame
+keeps the lower bound clip / t_shortest and is flagged. Exposure ratios are estimated from the data
+(ratio of sums over pixels unclipped in both frames), starting from the EXIF times.
+
+Units of the result: relative radiance, full wells per second at ISO 100 (1.0 = a signal that fills the
+sensor in one second at base ISO).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from hdrcam.errors import InputError
+from hdrcam.io.raw import RawFrame
+from hdrcam.profiles import CameraSpec
+
+CLIP_MARGIN = 0.01  # of the black-to-clip range
+MIN_RATIO_SAMPLES = 200
+RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
+STRIP_ROWS = 512
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseModel:
+    """Shot + read noise of one camera at one ISO, in digital numbers."""
+
+    gain_dn_per_e: float
+    read_noise_dn: float
+
+    @classmethod
+    def from_camera(cls, camera: CameraSpec, iso: float, white_level_dn: float, black_level_dn: float
+                    ) -> "NoiseModel":
+        gain = (white_level_dn - black_level_dn) / camera.full_well_e * (iso / 100.0)
+        return cls(gain, camera.read_noise_e * gain)
+
+
+@dataclasses.dataclass
+class BayerMerge:
+    rate: np.ndarray  # H x W float32, relative radiance (full wells per second at ISO 100)
+    variance: np.ndarray  # H x W float32, of ``rate``
+    clipped_everywhere: np.ndarray  # H x W bool: clipped in every frame; rate is a lower bound
+    exposures_s: np.ndarray  # estimated true exposure per frame (shortest first)
+    labelled_exposures_s: np.ndarray  # from the files
+    clip_level_dn: float  # above black
+    notes: list[str]
+
+
+def black_subtracted(frame: RawFrame, dark: RawFrame | None = None) -> np.ndarray:
+    """Signal in DN above black (float32); a dark frame, when given, replaces the black level."""
+    bayer = frame.bayer_dn.astype(np.float32)
+    if dark is not None:
+        if dark.bayer_dn.shape != bayer.shape:
+            raise InputError(f"{dark.metadata.path}: dark frame size {dark.bayer_dn.shape} differs from "
+                             f"{bayer.shape}")
+        return bayer - dark.bayer_dn.astype(np.float32)
+    height, width = bayer.shape
+    black = np.tile(frame.metadata.black_level_tile(), ((height + 1) // 2, (width + 1) // 2))[:height, :width]
+    return bayer - black
+
+
+def clip_level_dn(frames: list[RawFrame]) -> float:
+    """Measured clip level above black: the highest value of the longest frame if many pixels share it
+    (compressed RAWs clip below the nominal white level), else the white level."""
+    longest = frames[-1]
+    meta = longest.metadata
+    top = int(longest.bayer_dn.max())
+    black = float(np.mean(meta.black_level_dn))
+    if np.count_nonzero(longest.bayer_dn >= top - 1) >= 16:
+        return min(float(top), meta.white_level_dn) - black
+    return meta.white_level_dn - black
+
+
+def dilated(mask: np.ndarray) -> np.ndarray:
+    """A clipped-sample mask grown by one pixel: neighbours of clipped samples (blooming, crosstalk, and the
+    demosaicing footprint) are not trusted either."""
+    return cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+
+
+def estimate_exposures(signals: list[np.ndarray], masks: list[np.ndarray], labelled_s: np.ndarray,
+                       threshold_dn: float, notes: list[str]) -> np.ndarray:
+    """True exposure times from the data: adjacent-frame ratios, anchored to the labels' geometric mean.
+
+    The ratio of frame k+1 to k is sum(y_k+1) / sum(y_k) over pixels unclipped in both whose shorter-frame
+    signal is below RATIO_HEADROOM of the clip level divided by the ratio. There is no lower bound: noise
+    sums to zero, while selecting on a noisy value near a floor biases the ratio (by ~1 % on night scenes).
+    """
+    ratios = []
+    for k in range(len(signals) - 1):  # masks: clipped samples, not dilated (each sample stands alone here)
+        short, long_ = signals[k], signals[k + 1]
+        labelled = labelled_s[k + 1] / labelled_s[k]
+        ratio, count = labelled, 0
+        for _ in range(3):  # the upper bound depends on the ratio: refine it
+            valid = ~masks[k] & ~masks[k + 1] & (short < RATIO_HEADROOM * threshold_dn / ratio)
+            count = int(np.count_nonzero(valid))
+            denominator = float(short[valid].sum(dtype=np.float64))
+            if count < MIN_RATIO_SAMPLES or denominator <= 0:
+                break
+            ratio = float(long_[valid].sum(dtype=np.float64)) / denominator
+        if count < MIN_RATIO_SAMPLES or ratio <= 1.0:
+            notes.append(f"frames {k}-{k + 1}: only {count} pixels usable in both; using the labelled ratio "
+                         f"{labelled:.4f}")
+            ratio = labelled
+        else:
+            notes.append(f"frames {k}-{k + 1}: ratio {ratio:.4f} from {count} pixels (labels say {labelled:.4f})")
+        ratios.append(ratio)
+    relative = np.concatenate([[1.0], np.cumprod(ratios)])
+    scale = np.exp(np.mean(np.log(labelled_s)) - np.mean(np.log(relative)))
+    return relative * scale
+
+
+def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFrame | None] | None = None,
+                estimate_ratios: bool = True) -> BayerMerge:
+    """Inverse-variance merge of black-subtracted Bayer frames (shortest first)."""
+    meta = frames[0].metadata
+    iso = meta.iso or 100.0
+    black = float(np.mean(meta.black_level_dn))
+    noise = NoiseModel.from_camera(camera, iso, meta.white_level_dn, black)
+    darks = darks or [None] * len(frames)
+    read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
+    notes: list[str] = []
+    clip = clip_level_dn(frames)
+    threshold = clip * (1.0 - CLIP_MARGIN)
+    signals = [black_subtracted(frame, dark) for frame, dark in zip(frames, darks)]
+    clipped = [frame.bayer_dn.astype(np.float32) - black >= threshold for frame in frames]
+    labelled = np.array([frame.metadata.exposure_s for frame in frames])
+    exposures = estimate_exposures(signals, clipped, labelled, threshold, notes) \
+        if estimate_ratios and len(frames) > 1 else labelled.copy()
+    masks = [dilated(mask) for mask in clipped]
+
+    height, width = signals[0].shape
+    rate = np.empty((height, width), np.float32)
+    variance = np.empty((height, width), np.float32)
+    everywhere = np.empty((height, width), bool)
+    for top in range(0, height, STRIP_ROWS):
+        rows = slice(top, min(top + STRIP_ROWS, height))
+        y = np.stack([s[rows] for s in signals])
+        usable = ~np.stack([m[rows] for m in masks])
+        t = exposures[:, None, None].astype(np.float32)
+        estimate = _weighted(y, t, usable, np.maximum(y, 0.0) * noise.gain_dn_per_e + read_variance)[0]
+        pooled = np.maximum(estimate, 0.0)[None] * t * noise.gain_dn_per_e + read_variance
+        estimate, information = _weighted(y, t, usable, pooled)
+        none = ~usable.any(axis=0)
+        estimate[none] = threshold / exposures[0]
+        information[none] = 0.0
+        rate[rows], everywhere[rows] = estimate, none
+        variance[rows] = np.where(none, np.inf, 1.0 / np.maximum(information, 1e-30))
+    to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
+    variance *= to_relative ** 2
+    variance[everywhere] = np.float32(np.finfo(np.float32).max)
+    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, notes)
+
+
+def _weighted(y: np.ndarray, t: np.ndarray, usable: np.ndarray, variance_dn2: np.ndarray):
+    """sum_k w_k (y_k / t_k) / sum_k w_k with w_k = t_k^2 / Var(y_k) on usable samples; also sum_k w_k."""
+    weights = np.where(usable, t * t / variance_dn2, 0.0).astype(np.float32)
+    information = weights.sum(axis=0)
+    estimate = (weights * (y / t)).sum(axis=0) / np.maximum(information, 1e-30)
+    return estimate.astype(np.float32), information
