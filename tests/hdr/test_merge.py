@@ -1,0 +1,127 @@
+"""The bracket merge against ground truth: radiance error vs an oracle merge, ratio estimation, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hdrcam.capture.backends import open_camera
+from hdrcam.capture.bracket import BracketCapture, BracketPlan
+from hdrcam.capture.scene import Scene, load_scene
+from hdrcam.cli import main
+from hdrcam.errors import InputError
+from hdrcam.hdr.bracket_input import read_bracket
+from hdrcam.hdr.fuse import fuse
+from hdrcam.hdr.merge import merge_bayer
+from hdrcam.optics.analytic import dirac
+from hdrcam.profiles import load_profile
+
+PROFILE = load_profile("simulated")
+
+
+def capture(folder: Path, scene: Scene | str = "night", *, seed=0, exposure_error=0.0, iso=100.0, stops=5,
+            shortest=1 / 4000, dark=False, size=(96, 128)):
+    scene = scene if isinstance(scene, Scene) else load_scene(scene, *size, seed=seed)
+    camera, simulated = open_camera("sim", PROFILE, scene=scene, psf=dirac(9), seed=seed,
+                                    exposure_error=exposure_error, hot_pixel_fraction=0.0)
+    with camera:
+        capture = BracketCapture(camera, PROFILE.camera, folder, backend="sim", profile="simulated",
+                                 show_progress=False, true_exposure_s=simulated.true_exposure_s)
+        plan = BracketPlan(shortest_s=shortest, stops=stops, ev_step=3.0, iso=iso)
+        bracket = capture.shoot(plan)
+    truth = simulated._rate(False) / simulated.reference_exposure_s  # full wells per second, Bayer
+    return bracket, truth
+
+
+def relative_rms(estimate, truth, mask):
+    return float(np.sqrt(np.mean(((estimate - truth) / truth)[mask] ** 2)))
+
+
+def test_merge_is_within_10_percent_of_an_oracle_that_knows_the_true_exposures(tmp_path):
+    """Scene spans 0.005 .. 256 relative radiance (> 1e4:1) plus the zero-noise floor; 7 % label errors."""
+    bracket, truth = capture(tmp_path, seed=3, exposure_error=0.07)
+    frames = read_bracket([tmp_path])
+    merged = merge_bayer(frames, PROFILE.camera)
+    true_exposures = np.array([f.true_exposure_s for f in bracket.frames])
+    oracle = merge_bayer([_relabelled(f, t) for f, t in zip(frames, true_exposures)], PROFILE.camera,
+                         estimate_ratios=False)
+    valid = ~merged.clipped_everywhere & (truth > 0)
+    error, oracle_error = relative_rms(merged.rate, truth, valid), relative_rms(oracle.rate, truth, valid)
+    assert error <= 1.10 * oracle_error
+    assert truth[valid].max() / truth[valid].min() > 1e4
+
+
+def _relabelled(frame, exposure_s):
+    import dataclasses
+
+    return dataclasses.replace(frame, metadata=dataclasses.replace(frame.metadata, exposure_s=exposure_s))
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_ratios_are_recovered_within_half_a_percent_from_labels_off_by_7_percent(tmp_path, seed):
+    bracket, _ = capture(tmp_path, seed=seed, exposure_error=0.07)
+    merged = merge_bayer(read_bracket([tmp_path]), PROFILE.camera)
+    true = np.array([f.true_exposure_s for f in bracket.frames])
+    labelled_error = np.abs(np.diff(np.log(merged.labelled_exposures_s)) - np.diff(np.log(true))).max()
+    estimated_error = np.abs(np.diff(np.log(merged.exposures_s)) - np.diff(np.log(true))).max()
+    assert labelled_error > 0.02 and estimated_error < 0.005
+
+
+def test_pixels_clipped_everywhere_carry_a_finite_lower_bound_and_a_flag(tmp_path):
+    radiance = np.full((32, 48, 3), 0.2, np.float32)
+    radiance[10:14, 10:14] = 1e6  # clipped even at 1/4000 s
+    capture(tmp_path, Scene(32, 48, radiance), stops=2)
+    image = fuse([tmp_path], PROFILE.camera)
+    assert image.clipped[11:13, 11:13].all() and not image.clipped[25:, 30:].any()
+    assert np.isfinite(image.rgb).all() and np.isfinite(image.merge.rate).all()
+    lower_bound = image.merge.rate[11, 11]
+    assert 0 < lower_bound < 1e6 * 60
+
+
+def test_a_black_scene_merges_to_near_zero_and_stays_finite(tmp_path):
+    capture(tmp_path, "flat:0", stops=3, size=(32, 32))
+    image = fuse([tmp_path], PROFILE.camera, with_variance=True)
+    assert np.isfinite(image.rgb).all() and np.isfinite(image.variance).all()
+    noise = np.sqrt(image.variance)  # read noise only: the estimate scatters around zero within it
+    assert np.abs(image.rgb.mean()) < 0.2 * noise.mean() and (np.abs(image.rgb) < 6 * noise).all()
+
+
+def test_fuse_cli_writes_exr_with_mask_and_preview(tmp_path, capsys):
+    folder = tmp_path / "bracket"
+    capture(folder, "night", stops=3)
+    out = tmp_path / "hdr.exr"
+    assert main(["fuse", str(folder), "--out", str(out), "--profile", "simulated"]) == 0
+    from hdrcam.io.exr import read_exr
+
+    exr = read_exr(out)
+    assert set(exr.channels) == {"R", "G", "B", "clipped"} and out.with_suffix(".png").is_file()
+    assert "estimated_exposures_s" in exr.attributes
+    assert main(["fuse", str(folder), "--out", str(tmp_path / "h.exr"), "--profile", "simulated", "--half"]) == 0
+    assert np.allclose(read_exr(tmp_path / "h.exr").rgb(), exr.rgb(), rtol=1e-3, atol=1e-4)
+    capsys.readouterr()
+    before = out.read_bytes()
+    assert main(["fuse", str(folder), "--out", str(out), "--profile", "simulated"]) == 1
+    assert "exists" in capsys.readouterr().err and out.read_bytes() == before
+
+
+def test_bad_brackets_are_refused_without_writing(tmp_path, capsys):
+    capture(tmp_path / "a", "flat:0.3", stops=2, iso=100, size=(32, 32))
+    capture(tmp_path / "b", "flat:0.3", stops=2, iso=400, size=(32, 32), shortest=1 / 2000)
+    capture(tmp_path / "c", "flat:0.3", stops=2, size=(32, 48), shortest=1 / 1000)
+    capture(tmp_path / "d", "flat:1e9", stops=2, size=(32, 32))
+    a = sorted((tmp_path / "a").glob("*.dng"))
+    cases = {
+        "ISO": [a[0], *(tmp_path / "b").glob("frame-01.dng")],
+        "frame size": [a[0], *(tmp_path / "c").glob("frame-01.dng")],
+        "every pixel is clipped": [tmp_path / "d"],
+    }
+    for message, sources in cases.items():
+        with pytest.raises(InputError, match=message):
+            fuse(sources, PROFILE.camera)
+    damaged = tmp_path / "damaged.dng"
+    damaged.write_bytes(a[1].read_bytes()[:2000])
+    out = tmp_path / "out.exr"
+    assert main(["fuse", str(a[0]), str(damaged), "--out", str(out), "--profile", "simulated"]) == 1
+    assert "damaged.dng" in capsys.readouterr().err and not out.exists()
