@@ -397,17 +397,17 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         return len(data)
 
     def bulk_read(self, dev_handle, ep, intf, buff, timeout):
-        try:
-            return self.camera.bulk_in(buff)
-        except usb.core.USBTimeoutError:
-            self.camera.clock.sleep(timeout / 1000)
-            raise
+        return self._read(self.camera.bulk_in, buff, timeout)
 
     def intr_read(self, dev_handle, ep, intf, buff, timeout):
+        return self._read(self.camera.interrupt_in, buff, timeout)
+
+    def _read(self, pipe, buff, timeout_ms: int) -> int:
+        """A read that finds nothing waits out its timeout on the virtual clock, as on a real bus."""
         try:
-            return self.camera.interrupt_in(buff)
+            return pipe(buff)
         except usb.core.USBTimeoutError:
-            self.camera.clock.sleep(timeout / 1000)
+            self.camera.clock.sleep(timeout_ms / 1000)
             raise
 
     def ctrl_transfer(self, dev_handle, bmRequestType, bRequest, wValue, wIndex, data, timeout):

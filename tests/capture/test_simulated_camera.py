@@ -7,7 +7,8 @@ import pytest
 
 from hdrcam.capture.notches import SHUTTER_NOTCHES, bracket_notches, nearest_shutter
 from hdrcam.capture.scene import PointSource, Scene, load_scene
-from hdrcam.capture.simulated import BASE_ISO, SimulatedCamera, camera_from_srgb
+from hdrcam.capture.simulated import BASE_ISO, SimulatedCamera
+from hdrcam.colorimetry import camera_from_srgb
 from hdrcam.optics.analytic import dirac
 from hdrcam.profiles import load_profile
 from tests.capture.helpers import small_camera
