@@ -59,11 +59,9 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
 def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,
          with_variance: bool = False) -> FusedImage:
     frames = read_bracket(sources)
-    longest = frames[-1].bayer_dn
     white = frames[-1].metadata.white_level_dn
     if all(int(frame.bayer_dn.min()) >= white - 1 for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
-    del longest
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks))
     meta = frames[0].metadata
     rgb = demosaic_bilinear(merge.rate, meta.cfa_pattern)
