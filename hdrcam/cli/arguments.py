@@ -42,16 +42,16 @@ def exposure_seconds(text: str) -> float:
     return value
 
 
-def integers(count: int, separator: str = ","):
-    """An argument type for ``count`` non-negative integers, e.g. '10,20,300,200' or '1024x768' (separator x)."""
+def integers(count: int, separator: str = ",", minimum: int = 0):
+    """An argument type for ``count`` integers >= ``minimum``, e.g. '10,20,300,200' or '1024x768' (separator x)."""
     def parse(text: str) -> tuple[int, ...]:
         parts = text.lower().split(separator)
         try:
             values = tuple(int(part) for part in parts)
         except ValueError:
             values = ()
-        if len(values) != count or min(values) < 0:
-            raise argparse.ArgumentTypeError(f"expected {count} non-negative integers separated by "
+        if len(values) != count or min(values) < minimum:
+            raise argparse.ArgumentTypeError(f"expected {count} integers >= {minimum} separated by "
                                              f"{separator!r}, got {text!r}")
         return values
     return parse

@@ -38,7 +38,7 @@ def register(commands) -> None:
     simulation = parser.add_argument_group("simulated cameras (sim, sim-usb)")
     simulation.add_argument("--scene", default="point", help="point[:POWER] | night | flat[:LEVEL] | FILE.exr")
     simulation.add_argument("--psf", default="doe", help="doe (the profile's DOE) | dirac | FILE.exr")
-    simulation.add_argument("--size", type=integers(2, "x"), default=None, metavar="WxH",
+    simulation.add_argument("--size", type=integers(2, "x", minimum=2), default=None, metavar="WxH",
                             help="frame size (default: the profile's sensor)")
     simulation.add_argument("--seed", type=int, default=0, help="noise, scene and defect seed")
     simulation.add_argument("--hot-pixels", type=float, default=2e-5, metavar="FRACTION")

@@ -109,6 +109,14 @@ def test_capture_never_overwrites(tmp_path, capsys):
     assert before == {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
 
 
+@pytest.mark.parametrize("size", ["0x0", "1x48", "64"])
+def test_impossible_frame_sizes_are_usage_errors(tmp_path, size, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["capture", "bracket", "--out", str(tmp_path / "x"), "--size", size])
+    assert exit_info.value.code == 2 and capsys.readouterr().err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
 def test_usb_without_a_camera_is_one_line_and_exit_1(tmp_path, capsys):
     assert main(["capture", "bracket", "--camera", "usb", "--out", str(tmp_path / "x")]) == 1
     error = capsys.readouterr().err
