@@ -27,6 +27,7 @@ from hdrcam.profiles import CameraSpec
 CLIP_MARGIN = 0.01  # of the black-to-clip range
 MIN_RATIO_SAMPLES = 200
 RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
+SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame, for ratio estimation
 STRIP_ROWS = 512
 
 
@@ -53,6 +54,26 @@ class BayerMerge:
     labelled_exposures_s: np.ndarray  # from the files
     clip_level_dn: float  # above black
     notes: list[str]
+    usable_frames: np.ndarray  # H x W uint8 bit mask: bit k set where frame k's sample was used
+    noise: NoiseModel
+    read_variance_dn2: float  # per sample, after black or dark subtraction
+    to_relative: float  # relative radiance per DN/s
+
+    def variance_at(self, rate: np.ndarray) -> np.ndarray:
+        """Variance of the merged rate, per pixel, if the true rate were ``rate`` (same shape, relative units).
+
+        Weights computed from a rate that excludes a sample's own noise (e.g. its neighbours) keep a
+        weighted fit unbiased; the merge's own ``variance`` uses the sample itself and so favours samples
+        that came out low.
+        """
+        signal_dn_per_s = np.maximum(rate, 0.0) / self.to_relative
+        information = np.zeros(rate.shape, np.float64)
+        for k, t in enumerate(self.exposures_s):
+            used = (self.usable_frames >> k) & 1 == 1
+            variance_dn2 = signal_dn_per_s * t * self.noise.gain_dn_per_e + self.read_variance_dn2
+            information += np.where(used, t * t / variance_dn2, 0.0)
+        with np.errstate(divide="ignore"):
+            return np.where(information > 0, self.to_relative ** 2 / information, np.inf)
 
 
 def black_subtracted(frame: RawFrame, dark: RawFrame | None = None) -> np.ndarray:
@@ -87,20 +108,25 @@ def dilated(mask: np.ndarray) -> np.ndarray:
 
 
 def estimate_exposures(signals: list[np.ndarray], masks: list[np.ndarray], labelled_s: np.ndarray,
-                       threshold_dn: float, notes: list[str]) -> np.ndarray:
+                       threshold_dn: float, noise_floor_dn: float, notes: list[str]) -> np.ndarray:
     """True exposure times from the data: adjacent-frame ratios, anchored to the labels' geometric mean.
 
     The ratio of frame k+1 to k is sum(y_k+1) / sum(y_k) over pixels unclipped in both whose shorter-frame
-    signal is below RATIO_HEADROOM of the clip level divided by the ratio. There is no lower bound: noise
-    sums to zero, while selecting on a noisy value near a floor biases the ratio (by ~1 % on night scenes).
+    signal is below RATIO_HEADROOM of the clip level divided by the ratio, and which carry signal: a third
+    frame (k+2, else k-1) is above SIGNAL_FLOOR read-noise sigmas there or clipped. Selecting on a frame
+    outside the pair keeps the selection independent of the pair's noise (selecting on a noisy value near a
+    floor biases the ratio), while dropping the empty background, whose noise would swamp a point source.
     """
     ratios = []
     for k in range(len(signals) - 1):  # masks: clipped samples, not dilated (each sample stands alone here)
         short, long_ = signals[k], signals[k + 1]
         labelled = labelled_s[k + 1] / labelled_s[k]
+        other = k + 2 if k + 2 < len(signals) else k - 1
+        carries_signal = True if other < 0 else \
+            (signals[other] > SIGNAL_FLOOR * noise_floor_dn) | masks[other]
         ratio, count = labelled, 0
         for _ in range(3):  # the upper bound depends on the ratio: refine it
-            valid = ~masks[k] & ~masks[k + 1] & (short < RATIO_HEADROOM * threshold_dn / ratio)
+            valid = ~masks[k] & ~masks[k + 1] & carries_signal & (short < RATIO_HEADROOM * threshold_dn / ratio)
             count = int(np.count_nonzero(valid))
             denominator = float(short[valid].sum(dtype=np.float64))
             if count < MIN_RATIO_SAMPLES or denominator <= 0:
@@ -133,7 +159,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     signals = [black_subtracted(frame, dark) for frame, dark in zip(frames, darks)]
     clipped = [frame.bayer_dn.astype(np.float32) - black >= threshold for frame in frames]
     labelled = np.array([frame.metadata.exposure_s for frame in frames])
-    exposures = estimate_exposures(signals, clipped, labelled, threshold, notes) \
+    exposures = estimate_exposures(signals, clipped, labelled, threshold, np.sqrt(read_variance), notes) \
         if estimate_ratios and len(frames) > 1 else labelled.copy()
     masks = [dilated(mask) for mask in clipped]
 
@@ -141,10 +167,13 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     rate = np.empty((height, width), np.float32)
     variance = np.empty((height, width), np.float32)
     everywhere = np.empty((height, width), bool)
+    usable_frames = np.zeros((height, width), np.uint8)
     for top in range(0, height, STRIP_ROWS):
         rows = slice(top, min(top + STRIP_ROWS, height))
         y = np.stack([s[rows] for s in signals])
         usable = ~np.stack([m[rows] for m in masks])
+        usable_frames[rows] = (usable.astype(np.uint8) << np.arange(len(frames), dtype=np.uint8)[:, None, None]).sum(
+            axis=0, dtype=np.uint8)
         t = exposures[:, None, None].astype(np.float32)
         estimate = _weighted(y, t, usable, np.maximum(y, 0.0) * noise.gain_dn_per_e + read_variance)[0]
         pooled = np.maximum(estimate, 0.0)[None] * t * noise.gain_dn_per_e + read_variance
@@ -157,7 +186,8 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
     variance *= to_relative ** 2
     variance[everywhere] = np.float32(np.finfo(np.float32).max)
-    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, notes)
+    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, notes, usable_frames,
+                      noise, read_variance, to_relative)
 
 
 def _weighted(y: np.ndarray, t: np.ndarray, usable: np.ndarray, variance_dn2: np.ndarray):
