@@ -18,7 +18,8 @@ from hdrcam.data.night_scene import night_scene
 from hdrcam.errors import InputError
 from hdrcam.io.exr import read_exr
 
-SCENE_KINDS = ("point", "night", "flat")
+SCENE_KINDS = ("point", "pinholes", "night", "flat")
+DEFAULT_PINHOLE_SPACING_PX = 96  # > the simulated profile's 63 px PSF plus an annulus for the background
 DEFAULT_POINT_POWER = 50.0  # PSF peak ~ half the full well at 1/4000 s with the default reference exposure
 
 
@@ -46,7 +47,12 @@ class Scene:
 
 
 def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene:
-    """``point[:POWER]`` | ``night`` | ``flat[:LEVEL]`` | an EXR file (scaled to cover the sensor, centre crop)."""
+    """``point[:POWER]`` | ``pinholes[:POWER[:SPACING]]`` | ``night`` | ``flat[:LEVEL]`` | an EXR file (scaled to
+    cover the sensor, centre crop).
+
+    ``pinholes`` is a pinhole-array calibration target: a grid of equal point sources SPACING pixels apart,
+    each imaged at its own sub-pixel and CFA phase, so together they sample the PSF densely.
+    """
     kind, _, argument = spec.partition(":")
     if kind == "point":
         power = _number(spec, argument, DEFAULT_POINT_POWER)
@@ -55,6 +61,15 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
         source = PointSource(width_px // 2 + float(offset[0]), height_px // 2 + float(offset[1]), power)
         return Scene(height_px, width_px, None, (source,), f"point source, power {power:g}, "
                                                            f"at ({source.x_px:.3f}, {source.y_px:.3f}) px")
+    if kind == "pinholes":
+        power_text, _, spacing_text = argument.partition(":")
+        power = _number(spec, power_text, DEFAULT_POINT_POWER)
+        spacing = int(_number(spec, spacing_text, DEFAULT_PINHOLE_SPACING_PX))
+        points = pinhole_grid(height_px, width_px, spacing, power, seed)
+        if not points:
+            raise InputError(f"scene {spec!r}: no pinhole fits a {width_px} x {height_px} frame {spacing} px apart")
+        return Scene(height_px, width_px, None, points, f"pinhole array, {len(points)} sources {spacing} px apart, "
+                                                         f"power {power:g} each")
     if kind == "night":
         return Scene(height_px, width_px, night_scene(height_px, width_px, seed), (), f"procedural night, seed {seed}")
     if kind == "flat":
@@ -63,11 +78,23 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
         return Scene(height_px, width_px, radiance, (), f"flat field {level:g}")
     path = Path(spec)
     if path.suffix.lower() != ".exr":
-        raise InputError(f"unknown scene {spec!r}: give point[:POWER], night, flat[:LEVEL] or an .exr file")
+        raise InputError(f"unknown scene {spec!r}: give point[:POWER], pinholes[:POWER[:SPACING]], night, "
+                         "flat[:LEVEL] or an .exr file")
     radiance = read_exr(path).rgb()
     if not np.isfinite(radiance).all():
         raise InputError(f"{path}: the scene has NaN or infinite pixels")
     return Scene(height_px, width_px, _cover(radiance, height_px, width_px), (), f"{path.name}")
+
+
+def pinhole_grid(height_px: int, width_px: int, spacing_px: int, power: float, seed: int
+                 ) -> tuple[PointSource, ...]:
+    """Sources on a square grid ``spacing_px`` apart, half a spacing from the edges, each moved by a seeded
+    uniform sub-pixel offset (a real target is never aligned with the pixel grid)."""
+    rng = np.random.default_rng(seed)
+    rows = np.arange(spacing_px // 2, height_px - spacing_px // 2 + 1, spacing_px) if spacing_px > 0 else []
+    columns = np.arange(spacing_px // 2, width_px - spacing_px // 2 + 1, spacing_px) if spacing_px > 0 else []
+    return tuple(PointSource(float(x + rng.uniform(0, 1)), float(y + rng.uniform(0, 1)), power)
+                 for y in rows for x in columns)
 
 
 def _number(spec: str, text: str, default: float) -> float:

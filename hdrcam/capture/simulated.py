@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import math
 from pathlib import Path
 
 import numpy as np
-import scipy.ndimage
 import torch
 
 from hdrcam.capture.camera import CapturedFrame, ExposureSettings
@@ -29,6 +27,7 @@ from hdrcam.colorimetry import SONY_A7_XYZ_TO_CAMERA, camera_from_srgb
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.dng import dng_bytes
 from hdrcam.io.raw import read_raw
+from hdrcam.optics.subpixel import box_shift, split_position
 from hdrcam.profiles import Profile
 from hdrcam.sensor import bayer_mosaic, fft_convolve
 
@@ -171,22 +170,14 @@ def camera_irradiance(scene: Scene, psf: np.ndarray) -> np.ndarray:
 
 
 def _add_point(irradiance: np.ndarray, psf: np.ndarray, x_px: float, y_px: float, power: np.ndarray) -> None:
-    """Add a PSF per channel, moved by a band-limited (Fourier) shift so its centre lands on (x, y).
-
-    A PSF sampled at the pixel pitch is not band-limited, so the shift rings a little; negative lobes are
-    clipped and the channel rescaled so the source's energy is exact.
-    """
-    size_y, size_x = psf.shape[1:]
-    column, row = math.floor(x_px), math.floor(y_px)
-    shift = (y_px - row, x_px - column)
-    pad = 2
+    """Add the PSF of a point source whose image lies at (x, y): each channel's pixel-integrated PSF split
+    over neighbouring pixels by the box model of :mod:`hdrcam.optics.subpixel` (no ringing, exact energy)."""
+    column, fraction_x = split_position(x_px)
+    row, fraction_y = split_position(y_px)
+    moved = box_shift(psf.astype(np.float64), fraction_y, fraction_x)
+    top, left = row - psf.shape[1] // 2, column - psf.shape[2] // 2
     for channel in range(3):
-        padded = np.pad(psf[channel].astype(np.float64), pad)
-        moved = np.fft.ifft2(scipy.ndimage.fourier_shift(np.fft.fft2(padded), shift)).real
-        moved = np.clip(moved, 0.0, None)
-        moved *= padded.sum() / max(moved.sum(), 1e-30)
-        top, left = row - size_y // 2 - pad, column - size_x // 2 - pad
-        _add_clipped(irradiance[channel], moved * power[channel], top, left)
+        _add_clipped(irradiance[channel], moved[channel] * power[channel], top, left)
 
 
 def _add_clipped(target: np.ndarray, patch: np.ndarray, top: int, left: int) -> None:

@@ -36,7 +36,9 @@ def register(commands) -> None:
                         help="region of interest for --auto, in pixels (default: whole frame)")
     parser.add_argument("--darks", action="store_true", help="also dark frames at the same exposures (DIR/darks)")
     simulation = parser.add_argument_group("simulated cameras (sim, sim-usb)")
-    simulation.add_argument("--scene", default="point", help="point[:POWER] | night | flat[:LEVEL] | FILE.exr")
+    simulation.add_argument("--scene", default="point",
+                            help="point[:POWER] | pinholes[:POWER[:SPACING]] (PSF calibration target) | night | "
+                                 "flat[:LEVEL] | FILE.exr")
     simulation.add_argument("--psf", default="doe", help="doe (the profile's DOE) | dirac | FILE.exr")
     simulation.add_argument("--size", type=integers(2, "x", minimum=2), default=None, metavar="WxH",
                             help="frame size (default: the profile's sensor)")
@@ -61,7 +63,7 @@ def run(arguments: argparse.Namespace) -> int:
     if arguments.camera != "usb":
         width, height = arguments.size or (profile.camera.width_px, profile.camera.height_px)
         scene = load_scene(arguments.scene, height, width, seed=arguments.seed)
-        psf = simulation_psf(profile, arguments.psf, seed=arguments.seed)
+        psf = simulation_psf(profile, arguments.psf)  # the DOE is part of the camera, not of the seed
     camera, simulated = open_camera(arguments.camera, profile, scene=scene, psf=psf, seed=arguments.seed,
                                     hot_pixel_fraction=arguments.hot_pixels, exposure_error=arguments.exposure_error)
     options = {"scene": scene.description if scene else None, "psf": arguments.psf if scene else None,
