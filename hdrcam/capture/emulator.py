@@ -27,7 +27,7 @@ from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES
 from hdrcam.capture.ptp.codes import (SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_RAW_FORMAT,
                                       SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID,
                                       ClassRequest, ContainerType, DataType, Event, Operation, Property, Response)
-from hdrcam.capture.ptp.container import Container, ContainerError, data, event, parse_header, response
+from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, DeviceInfo, ObjectInfo, PropertyDescriptor,
                                          pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
