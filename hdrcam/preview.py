@@ -40,3 +40,36 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18) -> np.ndarray:
     encoded = np.where(display <= 0.0031308, 12.92 * display, 1.055 * np.power(np.clip(display, 0.0031308, None),
                                                                                   1 / 2.4) - 0.055)
     return np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+
+
+def radial_profile(psf: np.ndarray) -> np.ndarray:
+    """(3, S, S) -> (3, S // 2 + 1): mean over rings of whole-pixel radius about the centre pixel."""
+    size = psf.shape[-1]
+    y, x = np.mgrid[:size, :size] - size // 2
+    ring = np.round(np.hypot(y, x)).astype(int).ravel()
+    counts = np.bincount(ring)
+    return np.stack([np.bincount(ring, weights=channel.ravel()) / counts for channel in psf])[:, :size // 2 + 1]
+
+
+def radial_profile_plot(psf: np.ndarray, size_px: int = 512, decades: float = 7.0) -> np.ndarray:
+    """A log-scale plot of each channel's radial profile (red, green, blue lines) as size x size RGB."""
+    profile = radial_profile(psf)
+    image = np.full((size_px, size_px, 3), 255, np.uint8)
+    margin = 40
+    span = size_px - 2 * margin
+    top = np.log10(max(float(profile.max()), 1e-300))
+    cv2.rectangle(image, (margin, margin), (margin + span, margin + span), (0, 0, 0), 1)
+    for decade in range(int(decades) + 1):
+        y = margin + round(span * decade / decades)
+        cv2.line(image, (margin, y), (margin + span, y), (220, 220, 220), 1)
+        cv2.putText(image, f"1e{int(np.ceil(top)) - decade}", (2, y + 4), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0))
+    cv2.putText(image, f"radius 0 .. {profile.shape[1] - 1} px", (margin, size_px - 12), cv2.FONT_HERSHEY_PLAIN,
+                1.0, (0, 0, 0))
+    radius = np.arange(profile.shape[1])
+    for channel, colour in enumerate(((220, 0, 0), (0, 160, 0), (0, 0, 220))):
+        level = np.log10(np.maximum(profile[channel], 10.0 ** (np.ceil(top) - decades)))
+        xs = margin + span * radius / max(radius[-1], 1)
+        ys = margin + span * (np.ceil(top) - level) / decades
+        points = np.stack([xs, ys.clip(margin, margin + span)], axis=1).round().astype(np.int32)
+        cv2.polylines(image, [points], False, colour, 2)
+    return image

@@ -1,0 +1,1 @@
+"""PSF calibration from point-source brackets (``hdrcam calibrate psf``)."""

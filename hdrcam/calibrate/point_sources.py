@@ -1,0 +1,83 @@
+"""Find the images of point sources in a merged Bayer frame and cut a window around each.
+
+Units: the merged rate (relative radiance, full wells per second at ISO 100), pixel positions with pixel
+centres at integers (row y, column x).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from hdrcam.hdr.demosaic import cfa_masks
+
+DETECTION_FRACTION = 0.05  # a source's peak must reach this fraction of the brightest source's peak
+ANNULUS_WIDTH_PX = 8
+
+
+@dataclasses.dataclass
+class SourceWindow:
+    """Bayer samples around one source: rows ``top ..``, columns ``left ..`` of the frame."""
+
+    top: int
+    left: int
+    rate: np.ndarray  # W x W, background-subtracted
+    weight: np.ndarray  # W x W inverse variance; 0 where a sample is not to be trusted
+    channel: np.ndarray  # W x W ints 0/1/2 (R, G, B) from the CFA
+    background: np.ndarray  # 3, per channel, subtracted from ``rate``
+    noise: np.ndarray  # 3, per channel standard deviation in the annulus
+    y_px: float  # first guess of the source's position in the frame
+    x_px: float
+
+
+def channel_map(cfa_pattern: str, height_px: int, width_px: int) -> np.ndarray:
+    """H x W ints: which of R (0), G (1), B (2) each Bayer sample measures."""
+    return np.argmax(cfa_masks((height_px, width_px), cfa_pattern), axis=0).astype(np.int8)
+
+
+def detect_sources(rate: np.ndarray, usable: np.ndarray, min_separation_px: int) -> list[tuple[int, int]]:
+    """(row, column) of local maxima of the 2 x 2-summed rate, at least ``min_separation_px`` apart,
+    brighter than DETECTION_FRACTION of the brightest; brightest first."""
+    summed = cv2.blur(np.where(usable, rate, 0.0).astype(np.float32), (2, 2), borderType=cv2.BORDER_CONSTANT) * 4
+    size = max(3, min_separation_px | 1)
+    local_max = summed >= cv2.dilate(summed, np.ones((size, size), np.uint8))
+    peak = float(summed.max())
+    if not peak > 0:
+        return []
+    rows, columns = np.nonzero(local_max & (summed >= DETECTION_FRACTION * peak))
+    order = np.argsort(-summed[rows, columns])
+    return [(int(rows[i]), int(columns[i])) for i in order]
+
+
+def cut_window(rate: np.ndarray, weight: np.ndarray, channels: np.ndarray, row: int, column: int,
+               half_px: int) -> SourceWindow | None:
+    """A (2 half + 1)^2 window of samples centred on (row, column), with the background (per channel median
+    in an annulus just outside it) subtracted; None when window and annulus do not fit in the frame."""
+    outer = half_px + ANNULUS_WIDTH_PX
+    height, width = rate.shape
+    if row - outer < 0 or column - outer < 0 or row + outer >= height or column + outer >= width:
+        return None
+    rows, columns = slice(row - outer, row + outer + 1), slice(column - outer, column + outer + 1)
+    y, x = np.mgrid[-outer:outer + 1, -outer:outer + 1]
+    ring = (np.maximum(np.abs(y), np.abs(x)) > half_px) & (weight[rows, columns] > 0)
+    background, noise = np.zeros(3), np.zeros(3)
+    for c in range(3):
+        samples = rate[rows, columns][ring & (channels[rows, columns] == c)]
+        if samples.size:
+            background[c] = float(np.median(samples))
+            noise[c] = float(1.4826 * np.median(np.abs(samples - background[c])))
+    inner = slice(ANNULUS_WIDTH_PX, ANNULUS_WIDTH_PX + 2 * half_px + 1)
+    window_channels = channels[rows, columns][inner, inner]
+    window_rate = rate[rows, columns][inner, inner] - background[window_channels]
+    window_weight = weight[rows, columns][inner, inner]
+    green = (window_channels == 1) & (window_weight > 0)
+    yy, xx = y[inner, inner], x[inner, inner]
+    core = green & (np.hypot(yy, xx) <= 3)
+    mass = np.clip(window_rate, 0, None) * core
+    total = float(mass.sum())
+    y_guess = row + (float((mass * yy).sum()) / total if total > 0 else 0.0)
+    x_guess = column + (float((mass * xx).sum()) / total if total > 0 else 0.0)
+    return SourceWindow(row - half_px, column - half_px, window_rate.astype(np.float64),
+                        window_weight.astype(np.float64), window_channels, background, noise, y_guess, x_guess)

@@ -1,0 +1,113 @@
+"""Measured PSF from a point-source bracket: merge on the Bayer data, find the sources, fit the PSF.
+
+Steps (issue 4; REFERENCE.md sec. 5): inverse-variance merge of the bracket in camera RGB with matching dark
+frames subtracted; hot pixels found in the darks and samples clipped in every frame get no weight; each
+source's background is the per-channel median of an annulus just outside its window; the PSF, the sources'
+positions and fluxes are fitted jointly on the Bayer samples (:mod:`hdrcam.calibrate.effective_psf`), so the
+green centroid lands on the centre pixel and all channels share that sub-pixel shift; the result is
+cropped to a given size, or to the smallest size that holds a given energy fraction, and each channel is
+normalised to unit sum.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf
+from hdrcam.calibrate.hot_pixels import hot_pixel_map
+from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window, detect_sources
+from hdrcam.errors import InputError
+from hdrcam.hdr.bracket_input import read_bracket
+from hdrcam.hdr.fuse import matching_darks
+from hdrcam.hdr.merge import BayerMerge, NoiseModel, dilated, merge_bayer
+from hdrcam.io.raw import RawFrame
+from hdrcam.profiles import CameraSpec
+
+WINDOW_MARGIN_PX = 2  # room for the sub-pixel placement around the PSF support
+
+
+@dataclasses.dataclass
+class PsfCalibration:
+    psf: np.ndarray  # 3 x s x s, unit sum per channel, camera RGB
+    fit: EffectivePsf  # at the fitted size
+    energy_in_crop: np.ndarray  # 3: fraction of the fitted support's energy inside the crop
+    windows: list[SourceWindow]
+    merge: BayerMerge
+    frames: list[RawFrame]
+    darks: list[RawFrame] | None
+    hot_pixels: int
+    rejected_sources: int  # detected but clipped in every frame, or too close to the frame's edge
+
+    @property
+    def background(self) -> np.ndarray:
+        """Median background per channel over the sources' annuli (merge units)."""
+        return np.median([w.background for w in self.windows], axis=0)
+
+    @property
+    def peak_snr(self) -> np.ndarray:
+        """Per channel: median over sources of the fitted peak signal over the annulus noise."""
+        peaks = self.fit.flux * self.fit.psf.max(axis=(1, 2))[None, :]
+        noise = np.array([w.noise for w in self.windows])
+        return np.median(peaks / np.maximum(noise, 1e-30), axis=0)
+
+
+def neighbour_mean(bayer: np.ndarray) -> np.ndarray:
+    """Mean of each sample's eight same-colour neighbours (two pixels away): a rate estimate free of the
+    sample's own noise, for its weight."""
+    kernel = np.zeros((5, 5), np.float32)
+    kernel[::2, ::2] = 1.0 / 8.0
+    kernel[2, 2] = 0.0
+    return cv2.filter2D(bayer.astype(np.float32), -1, kernel, borderType=cv2.BORDER_REFLECT)
+
+
+def centred_energy(psf: np.ndarray, size: int) -> np.ndarray:
+    """Per channel energy inside the centred size x size square."""
+    start = psf.shape[-1] // 2 - size // 2
+    return psf[:, start:start + size, start:start + size].sum(axis=(1, 2))
+
+
+def crop_size_for_energy(psf: np.ndarray, fraction: float) -> int:
+    """The smallest odd size whose centred square holds ``fraction`` of every channel's energy."""
+    for size in range(1, psf.shape[-1] + 1, 2):
+        if centred_energy(psf, size).min() >= fraction * psf.sum(axis=(1, 2)).min():
+            return size
+    return psf.shape[-1]
+
+
+def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
+                  energy_fraction: float | None = None) -> PsfCalibration:
+    frames = read_bracket(sources)
+    dark_frames = matching_darks(frames, darks)
+    merge = merge_bayer(frames, camera)  # darks find hot pixels; the annulus takes any dark offset out
+    meta = frames[0].metadata
+    height, width = merge.rate.shape
+    noise = NoiseModel.from_camera(camera, meta.iso or 100.0, meta.white_level_dn, float(np.mean(meta.black_level_dn)))
+    hot = hot_pixel_map(dark_frames, noise.read_noise_dn) if dark_frames else np.zeros((height, width), bool)
+    untrusted = dilated(merge.clipped_everywhere) | hot
+    weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))
+    channels = channel_map(meta.cfa_pattern, height, width)
+    half = size_px // 2 + WINDOW_MARGIN_PX
+    windows, rejected = [], 0
+    for row, column in detect_sources(merge.rate, ~untrusted, size_px):
+        window = cut_window(merge.rate, weight, channels, row, column, half)
+        clipped = merge.clipped_everywhere[row - half:row + half + 1, column - half:column + half + 1].any()
+        if window is None or clipped:
+            rejected += 1
+            continue
+        windows.append(window)
+    if not windows:
+        reason = "clipped in every frame (add a shorter exposure)" if merge.clipped_everywhere.any() else \
+            "too close to the frame's edge or not found"
+        raise InputError(f"no usable point source: {rejected} found, all {reason}" if rejected else
+                         "no point source found in the bracket")
+    fit = fit_effective_psf(windows, size_px)
+    crop = size_px if energy_fraction is None else crop_size_for_energy(fit.psf, energy_fraction)
+    start = size_px // 2 - crop // 2
+    psf = fit.psf[:, start:start + crop, start:start + crop]
+    energy = psf.sum(axis=(1, 2))
+    return PsfCalibration(psf / energy[:, None, None], fit, energy, windows, merge, frames, dark_frames,
+                          int(hot.sum()), rejected)
