@@ -52,6 +52,9 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
         dark = min(darks, key=lambda d: abs(np.log(d.metadata.exposure_s / exposure)))
         if abs(dark.metadata.exposure_s / exposure - 1) > 0.01:
             raise InputError(f"{darks_source}: no dark frame at {exposure:g} s for {frame.metadata.path.name}")
+        if dark.bayer_dn.shape != frame.bayer_dn.shape:
+            raise InputError(f"{dark.metadata.path}: dark frame of {dark.bayer_dn.shape[1]} x {dark.bayer_dn.shape[0]} "
+                             f"px for frames of {frame.bayer_dn.shape[1]} x {frame.bayer_dn.shape[0]} px")
         matched.append(dark)
     return matched
 

@@ -95,3 +95,13 @@ def test_a_bracket_without_point_sources_is_refused(tmp_path, capsys):
 def test_an_even_size_is_a_clear_error(pinhole_bracket, tmp_path, capsys):
     assert main(["calibrate", "psf", str(pinhole_bracket), "--out", str(tmp_path / "r"), "--size", "32"]) == 1
     assert "odd" in capsys.readouterr().err
+
+
+def test_darks_of_another_frame_size_are_refused(pinhole_bracket, tmp_path, capsys):
+    darks = tmp_path / "small"
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "flat:0",
+                 "--size", "256x192", "--out", str(darks)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "psf", str(pinhole_bracket), "--darks", str(darks), "--out", str(tmp_path / "r"),
+                 "--profile", "simulated"]) == 1
+    assert "dark frame of 256 x 192 px" in capsys.readouterr().err
