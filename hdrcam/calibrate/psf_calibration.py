@@ -1,7 +1,8 @@
 """Measured PSF from a point-source bracket: merge on the Bayer data, find the sources, fit the PSF.
 
-Steps (issue 4; REFERENCE.md sec. 5): inverse-variance merge of the bracket in camera RGB with matching dark
-frames subtracted; hot pixels found in the darks and samples clipped in every frame get no weight; each
+Steps (issue 4; REFERENCE.md sec. 5): inverse-variance merge of the bracket in camera RGB (black level
+subtracted: a dark frame would add its own read noise, and the annulus below removes any dark offset);
+hot pixels found in the darks and samples clipped in every frame get no weight; each
 source's background is the per-channel median of an annulus just outside its window; the PSF, the sources'
 positions and fluxes are fitted jointly on the Bayer samples (:mod:`hdrcam.calibrate.effective_psf`), so the
 green centroid lands on the centre pixel and all channels share that sub-pixel shift; the result is
