@@ -2,7 +2,7 @@
 
 Relative radiance 1.0 is the level that just fills the sensor at the reference exposure; the paper's
 highlights reach 2^8 (Sec. 5). Sources: street lamps (round, with a brighter core), lit windows,
-LED grids and headlight pairs. Everything is drawn from one seed.
+LED grids, headlight pairs and lit lettering (shop signs). Everything is drawn from one seed.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ def night_scene(height_px: int, width_px: int, seed: int = 0, sources: int = 12)
     """An H x W x 3 float32 night scene with ``sources`` emitters on a background of 0.005-0.3."""
     rng = np.random.default_rng(seed)
     scene = _background(height_px, width_px, rng)
-    draw = (_street_lamp, _window, _led_grid, _headlights)
+    draw = (_street_lamp, _window, _led_grid, _headlights, _lettering)
     for _ in range(sources):
         draw[rng.integers(len(draw))](scene, rng)
     return np.clip(scene, 0.0, None).astype(np.float32)
@@ -90,3 +90,17 @@ def _headlights(scene: np.ndarray, rng: np.random.Generator) -> None:
     for offset in (0, separation):
         cv2.circle(mask, (x + offset, y), radius, 1.0, -1, lineType=cv2.LINE_AA)
     scene += (mask * rng.uniform(64.0, HIGHLIGHT_PEAK))[..., None] * np.array([1.0, 0.97, 0.92])
+
+
+_SIGN_WORDS = ("OPEN", "HOTEL", "BAR", "24H", "PHARMACY", "EXIT", "CAFE", "TAXI", "KEBAB", "PARKING")
+
+
+def _lettering(scene: np.ndarray, rng: np.random.Generator) -> None:
+    """A lit sign: a word in anti-aliased stroked letters at 4-64."""
+    x, y = _centre(scene, rng)
+    word = _SIGN_WORDS[rng.integers(len(_SIGN_WORDS))]
+    scale = rng.uniform(0.0015, 0.004) * scene.shape[1]
+    thickness = max(1, int(round(scale * rng.uniform(0.8, 1.6))))
+    mask = np.zeros(scene.shape[:2], np.uint8)  # OpenCV draws text on 8-bit images only
+    cv2.putText(mask, word, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale / 10.0, 255, thickness, cv2.LINE_AA)
+    scene += (mask.astype(np.float32) * (rng.uniform(4.0, 64.0) / 255.0))[..., None] * _colour(rng)

@@ -1,0 +1,50 @@
+"""HDR images from a folder of OpenEXR (.exr) and Radiance (.hdr) files, linear RGB float32."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.errors import InputError
+from hdrcam.io.exr import read_exr
+
+HDR_SUFFIXES = (".exr", ".hdr")
+
+
+def read_hdr_image(path: Path) -> np.ndarray:
+    """H x W x 3 float32 linear RGB from an EXR or Radiance file; NaN/Inf and negatives are refused/zeroed."""
+    path = Path(path)
+    if path.suffix.lower() == ".exr":
+        image = read_exr(path).rgb()
+    else:
+        image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        if image is None:
+            raise InputError(f"{path}: cannot read as a Radiance HDR image")
+        image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
+    if not np.isfinite(image).all():
+        raise InputError(f"{path}: image has NaN or Inf pixels")
+    return np.clip(image, 0.0, None)  # small negatives from resampling filters are not light
+
+
+def hdr_files(folder: Path) -> list[Path]:
+    """The HDR files in ``folder`` (sorted); an error when there are none."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder} is not a folder of HDR images")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in HDR_SUFFIXES)
+    if not files:
+        raise InputError(f"{folder} holds no .exr or .hdr files")
+    return files
+
+
+class HdrFolder:
+    """The images of a folder, read once and kept in memory (float32)."""
+
+    def __init__(self, folder: Path):
+        self.files = hdr_files(folder)
+        self.images = [read_hdr_image(path) for path in self.files]
+
+    def __len__(self) -> int:
+        return len(self.images)

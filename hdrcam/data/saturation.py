@@ -1,0 +1,40 @@
+"""Exposure scaling of HDR training and test images (paper Sec. 5).
+
+An image is divided by the (1 - f) quantile of its per-pixel maximum channel, so that exactly a fraction
+f of its pixels exceed 1.0 (the sensor's full well) in at least one channel, then clipped to [0, 2^8].
+Training draws f from 1-3 %; testing uses exactly 1.5 %.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hdrcam.errors import InputError
+
+HIGHLIGHT_PEAK = 256.0
+TEST_CLIPPED_FRACTION = 0.015
+TRAIN_CLIPPED_RANGE = (0.01, 0.03)
+
+
+def clipped_fraction(radiance: np.ndarray) -> float:
+    """Fraction of pixels whose brightest channel exceeds 1."""
+    return float(np.mean(np.max(radiance, axis=-1) > 1.0))
+
+
+def saturation_scale(radiance: np.ndarray, fraction: float) -> float:
+    """The divisor that leaves ``fraction`` of the pixels of an H x W x 3 image above 1."""
+    if not 0.0 < fraction < 1.0:
+        raise ValueError(f"clipped fraction must lie in (0, 1), got {fraction}")
+    brightest = np.max(radiance, axis=-1)
+    level = float(np.quantile(brightest, 1.0 - fraction, method="higher"))
+    if not level > 0.0 or not np.isfinite(level):
+        raise InputError("image has no light to scale (its bright pixels are zero); it cannot be saturated")
+    return level
+
+
+def scale_to_clipped_fraction(radiance: np.ndarray, fraction: float, scale_region: np.ndarray | None = None
+                              ) -> np.ndarray:
+    """``radiance / saturation_scale(...)`` clipped to [0, 2^8]; the scale is measured on ``scale_region``
+    (a view of the same image, e.g. the centre crop of a padded scene) when given."""
+    scale = saturation_scale(radiance if scale_region is None else scale_region, fraction)
+    return np.clip(radiance / np.float32(scale), 0.0, HIGHLIGHT_PEAK).astype(np.float32)

@@ -1,0 +1,64 @@
+"""Where training and test scenes come from: the procedural night-scene generator or a folder of HDR files.
+
+A scene is H x W x 3 float32 linear radiance, exposure-scaled as the paper does (hdrcam.data.saturation):
+training scenes so that 1-3 % of the pixels of the centre region exceed 1, test scenes exactly 1.5 %,
+clipped at 2^8. ``margin_px`` pads the centre region on every side so that light from outside the crop
+spreads into it through the PSF, as it does on a sensor; targets are the centre region only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hdrcam.data.crops import rotate_flip, saturated_crop
+from hdrcam.data.hdr_folder import HdrFolder
+from hdrcam.data.night_scene import night_scene
+from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, scale_to_clipped_fraction
+
+PROCEDURAL = "procedural"
+PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
+TEST_SEED_BASE = 1_000_000  # test scenes never share seeds with training draws
+
+
+class SceneSource:
+    """Training draws and a fixed test set from ``procedural`` or a folder of .exr/.hdr files."""
+
+    def __init__(self, data: str | Path):
+        self.description = str(data)
+        self.folder = None if str(data) == PROCEDURAL else HdrFolder(Path(data))
+
+    def _raw_crop(self, size_px: int, rng: np.random.Generator) -> np.ndarray:
+        if self.folder is None:
+            canvas = max(PROCEDURAL_CANVAS_PX, size_px)
+            image = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
+        else:
+            image = self.folder.images[int(rng.integers(len(self.folder)))]
+        return saturated_crop(image, size_px, rng)
+
+    def training_scene(self, size_px: int, margin_px: int, rng: np.random.Generator) -> np.ndarray:
+        """A (size + 2 margin)^2 scene, rotated/flipped, with 1-3 % of its centre above 1."""
+        crop = rotate_flip(self._raw_crop(size_px + 2 * margin_px, rng), rng)
+        fraction = rng.uniform(*TRAIN_CLIPPED_RANGE)
+        return _scaled(crop, fraction, margin_px)
+
+    def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
+        """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1."""
+        scenes = []
+        if self.folder is None:
+            for index in range(count):
+                rng = np.random.default_rng(TEST_SEED_BASE + index)
+                scenes.append((f"night-{index:03d}", _scaled(self._raw_crop(size_px + 2 * margin_px, rng),
+                                                             TEST_CLIPPED_FRACTION, margin_px)))
+        else:
+            for index, path in enumerate(self.folder.files):
+                rng = np.random.default_rng(TEST_SEED_BASE + index)
+                crop = saturated_crop(self.folder.images[index], size_px + 2 * margin_px, rng, preference=1.0)
+                scenes.append((path.stem, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
+        return scenes
+
+
+def _scaled(crop: np.ndarray, fraction: float, margin_px: int) -> np.ndarray:
+    centre = crop[margin_px:crop.shape[0] - margin_px, margin_px:crop.shape[1] - margin_px]
+    return scale_to_clipped_fraction(crop, fraction, scale_region=centre)

@@ -1,0 +1,115 @@
+"""Exposure scaling, crops, augmentation, the procedural generator and HDR folders."""
+
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+import pytest
+
+from hdrcam.data.crops import rotate_flip, saturated_crop
+from hdrcam.data.hdr_folder import HdrFolder, read_hdr_image
+from hdrcam.data.night_scene import night_scene
+from hdrcam.data.saturation import clipped_fraction, scale_to_clipped_fraction
+from hdrcam.data.scenes import SceneSource
+from hdrcam.errors import InputError
+
+SHARED_HDR = Path(__file__).resolve().parents[3] / "shared" / "data" / "hdr"
+DAMAGED = Path(__file__).resolve().parents[3] / "shared" / "data" / "damaged-exr"
+
+
+@pytest.mark.parametrize("fraction", [0.01, 0.015, 0.03])
+def test_scaling_leaves_exactly_the_asked_fraction_above_one(fraction):
+    image = np.random.default_rng(0).lognormal(0.0, 2.0, (200, 300, 3)).astype(np.float32)
+    scaled = scale_to_clipped_fraction(image, fraction)
+    assert clipped_fraction(scaled) == pytest.approx(fraction, abs=1 / (200 * 300))
+    assert scaled.max() <= 256.0 and scaled.min() >= 0.0
+
+
+def test_scaling_clips_at_two_to_the_eight_and_refuses_black_images():
+    image = np.ones((10, 10, 3), np.float32)
+    image[0, 0] = 1e9  # 1e9 : 1 contrast
+    image[0, 1] = 2.0
+    assert scale_to_clipped_fraction(image, 0.015).max() == 256.0
+    with pytest.raises(InputError, match="no light"):
+        scale_to_clipped_fraction(np.zeros((8, 8, 3), np.float32), 0.015)
+
+
+def test_saturated_crop_is_centred_on_bright_pixels():
+    image = np.zeros((300, 300, 3), np.float32)
+    image[250:256, 40:46] = 100.0
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        assert saturated_crop(image, 64, rng, preference=1.0).max() == 100.0
+    small = saturated_crop(image[:50, :50], 64, rng)  # smaller than the crop: padded
+    assert small.shape == (64, 64, 3)
+
+
+def test_rotate_flip_keeps_the_pixels():
+    image = np.arange(4 * 6 * 3, dtype=np.float32).reshape(4, 6, 3)
+    rng = np.random.default_rng(3)
+    shapes = set()
+    for _ in range(16):
+        turned = rotate_flip(image, rng)
+        shapes.add(turned.shape)
+        assert np.array_equal(np.sort(turned.ravel()), np.sort(image.ravel()))
+    assert shapes == {(4, 6, 3), (6, 4, 3)}
+
+
+def test_night_scenes_are_seeded_and_reach_two_to_the_eight():
+    first, again, other = night_scene(256, 256, seed=5, sources=30), night_scene(256, 256, seed=5, sources=30), \
+        night_scene(256, 256, seed=6, sources=30)
+    assert np.array_equal(first, again) and not np.array_equal(first, other)
+    assert first.max() > 16.0 and np.percentile(first, 50) < 0.5 and first.min() >= 0.0
+
+
+def test_procedural_source_scales_its_test_scenes_to_one_and_a_half_percent():
+    source = SceneSource("procedural")
+    scenes = source.test_scenes(64, 8, 3)
+    assert [name for name, _ in scenes] == ["night-000", "night-001", "night-002"]
+    for _, scene in scenes:
+        assert scene.shape == (80, 80, 3)
+        assert clipped_fraction(scene[8:-8, 8:-8]) == pytest.approx(0.015, abs=1.5 / 64 ** 2)
+    assert np.array_equal(scenes[0][1], source.test_scenes(64, 8, 1)[0][1])  # fixed test set
+    training = source.training_scene(64, 8, np.random.default_rng(0))
+    assert 0.01 - 1 / 64 ** 2 <= clipped_fraction(training[8:-8, 8:-8]) <= 0.03 + 1 / 64 ** 2
+
+
+@pytest.mark.skipif(not SHARED_HDR.is_dir(), reason="../shared/data/hdr not present")
+def test_hdr_folder_reads_the_shared_openexr_images():
+    folder = HdrFolder(SHARED_HDR)
+    assert len(folder) >= 5 and all(image.min() >= 0.0 and image.ndim == 3 for image in folder.images)
+    scenes = SceneSource(SHARED_HDR).test_scenes(128, 16, 0)
+    assert len(scenes) == len(folder)
+
+
+def test_hdr_folder_errors(tmp_path):
+    with pytest.raises(InputError, match="not a folder"):
+        HdrFolder(tmp_path / "missing")
+    with pytest.raises(InputError, match="no .exr or .hdr"):
+        HdrFolder(tmp_path)
+    bad = np.ones((4, 4, 3), np.float32)
+    bad[1, 1, 0] = np.nan
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": bad}).write(str(tmp_path / "nan.exr"))
+    with pytest.raises(InputError, match="NaN or Inf"):
+        read_hdr_image(tmp_path / "nan.exr")
+    (tmp_path / "broken.hdr").write_bytes(b"#?RADIANCE\nnot really")
+    with pytest.raises(InputError, match="Radiance"):
+        read_hdr_image(tmp_path / "broken.hdr")
+
+
+@pytest.mark.skipif(not DAMAGED.is_dir(), reason="../shared/data/damaged-exr not present")
+def test_damaged_exr_in_a_dataset_is_a_clear_error(tmp_path):
+    damaged = next(p for p in sorted(DAMAGED.iterdir()) if p.name.startswith("asan"))
+    (tmp_path / "damaged.exr").write_bytes(damaged.read_bytes())
+    with pytest.raises(InputError):
+        HdrFolder(tmp_path)
+
+
+def test_radiance_hdr_files_are_read(tmp_path):
+    import cv2
+
+    image = np.random.default_rng(0).uniform(0.01, 50.0, (8, 8, 3)).astype(np.float32)
+    cv2.imwrite(str(tmp_path / "a.hdr"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    read = read_hdr_image(tmp_path / "a.hdr")
+    # RGBE shares one exponent per pixel: 8-bit mantissas relative to the brightest channel
+    assert np.all(np.abs(read - image) <= image.max(axis=-1, keepdims=True) / 128)
