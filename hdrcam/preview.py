@@ -29,11 +29,19 @@ def side_by_side(images: list[np.ndarray], height_px: int = 512, gap_px: int = 8
     return np.concatenate(panels[:-1], axis=1)
 
 
-def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18) -> np.ndarray:
-    """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``)."""
+def log_average_luminance(hdr_rgb: np.ndarray) -> float:
+    """exp(mean(log(Y + 1e-6))) of a linear RGB image (Rec. 709 luminance)."""
+    rgb = np.nan_to_num(np.clip(np.asarray(hdr_rgb, np.float64), 0.0, None), posinf=0.0)
+    return float(np.exp(np.mean(np.log(rgb @ np.array([0.2126, 0.7152, 0.0722]) + 1e-6))))
+
+
+def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | None = None) -> np.ndarray:
+    """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``).
+
+    ``log_average`` fixes the exposure (e.g. that of a reference image, so several images compare fairly)."""
     rgb = np.nan_to_num(np.clip(np.asarray(hdr_rgb, np.float64), 0.0, None), posinf=0.0)
     luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
-    log_average = np.exp(np.mean(np.log(luminance + 1e-6)))
+    log_average = log_average_luminance(rgb) if log_average is None else log_average
     scaled = luminance * (key / log_average)
     compressed = scaled / (1.0 + scaled)
     display = rgb * (compressed / np.maximum(luminance, 1e-12))[..., None]
@@ -72,4 +80,34 @@ def radial_profile_plot(psf: np.ndarray, size_px: int = 512, decades: float = 7.
         ys = margin + span * (np.ceil(top) - level) / decades
         points = np.stack([xs, ys.clip(margin, margin + span)], axis=1).round().astype(np.int32)
         cv2.polylines(image, [points], False, colour, 2)
+    return image
+
+
+def line_plot(series: dict[str, tuple[np.ndarray, np.ndarray]], title: str, size_px: tuple[int, int] = (640, 400),
+              log_y: bool = True) -> np.ndarray:
+    """Lines (name -> (x, y)) on one set of axes as an RGB image; y on a log10 scale when ``log_y``."""
+    width, height = size_px
+    image = np.full((height, width, 3), 255, np.uint8)
+    left, top, right, bottom = 60, 30, width - 10, height - 30
+    cv2.rectangle(image, (left, top), (right, bottom), (0, 0, 0), 1)
+    cv2.putText(image, title, (left, 20), cv2.FONT_HERSHEY_PLAIN, 1.0, (0, 0, 0))
+    transform = (lambda v: np.log10(np.maximum(v, 1e-12))) if log_y else (lambda v: v)
+    xs = np.concatenate([np.asarray(x, float) for x, _ in series.values()])
+    ys = np.concatenate([transform(np.asarray(y, float)) for _, y in series.values()])
+    if xs.size == 0:
+        return image
+    x_low, x_high = float(xs.min()), float(max(xs.max(), xs.min() + 1))
+    y_low, y_high = float(ys.min()), float(max(ys.max(), ys.min() + 1e-6))
+    for label, value in ((y_high, top + 4), (y_low, bottom)):
+        text = f"1e{label:.1f}" if log_y else f"{label:.3g}"
+        cv2.putText(image, text, (2, value), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0))
+    cv2.putText(image, f"{x_low:.0f}", (left, height - 10), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0))
+    cv2.putText(image, f"{x_high:.0f}", (right - 40, height - 10), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0))
+    colours = ((0, 0, 0), (220, 0, 0), (0, 150, 0), (0, 0, 220), (200, 120, 0), (150, 0, 150))
+    for index, (name, (x, y)) in enumerate(series.items()):
+        colour = colours[index % len(colours)]
+        px = left + (right - left) * (np.asarray(x, float) - x_low) / (x_high - x_low)
+        py = bottom - (bottom - top) * (transform(np.asarray(y, float)) - y_low) / (y_high - y_low)
+        cv2.polylines(image, [np.stack([px, py], axis=1).round().astype(np.int32)], False, colour, 1)
+        cv2.putText(image, name, (right - 150, top + 16 * (index + 1)), cv2.FONT_HERSHEY_PLAIN, 0.9, colour)
     return image

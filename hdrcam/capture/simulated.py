@@ -27,6 +27,7 @@ from hdrcam.colorimetry import SONY_A7_XYZ_TO_CAMERA, camera_from_srgb
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.dng import dng_bytes
 from hdrcam.io.raw import read_raw
+from hdrcam.optics.psf_file import load_psf
 from hdrcam.optics.subpixel import box_shift, split_position
 from hdrcam.profiles import Profile
 from hdrcam.sensor import bayer_mosaic, fft_convolve
@@ -206,17 +207,3 @@ def simulation_psf(profile: Profile, choice: str = "doe", *, seed: int = 0) -> n
         with torch.no_grad():
             return simulator().psf.numpy().astype(np.float32)
     return load_psf(Path(choice))
-
-
-def load_psf(path: Path) -> np.ndarray:
-    """A PSF EXR (R, G, B channels) as 3 x k x k, each channel normalised to unit sum."""
-    from hdrcam.errors import InputError
-    from hdrcam.io.exr import read_exr
-
-    psf = read_exr(path).rgb().transpose(2, 0, 1).astype(np.float64)
-    if not np.isfinite(psf).all() or (psf < 0).any():
-        raise InputError(f"{path}: a PSF must be finite and non-negative")
-    sums = psf.sum(axis=(1, 2), keepdims=True)
-    if not (sums > 0).all():
-        raise InputError(f"{path}: a PSF channel is all zero")
-    return (psf / sums).astype(np.float32)

@@ -1,0 +1,1 @@
+"""Training: end-to-end DOE design, fine-tuning on a measured PSF, checkpoints."""

@@ -1,0 +1,75 @@
+"""Checkpoints: one torch file holding the network, the optics it was trained through and how it was made.
+
+Format ``hdrcam-checkpoint/1`` (a dict, loadable with ``torch.load(weights_only=True)``):
+  format, preset, profile, step, config (the TrainConfig as a dict), psf (3 x S x S float32 tensor: the PSF
+  the network expects, unit sum per channel), network (state dict without the frozen VGG-19),
+  doe (None, or {kind, feature_pitch_m, heights_m, parameters}), and for resumable run checkpoints also
+  optimizer, rng (numpy bit-generator state), noise_generator (torch generator state).
+Writes are atomic: a crash mid-write leaves the previous checkpoint intact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import atomic_path
+from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.presets import preset as preset_named
+from hdrcam.recon.vgg import load_vgg19
+
+CHECKPOINT_FORMAT = "hdrcam-checkpoint/1"
+SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "checkpoints" / "simulated-rank1-fast.pt"
+
+
+def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:
+    """Write ``state`` (see the module docstring) atomically."""
+    with atomic_path(Path(path), overwrite=overwrite) as temporary:
+        torch.save({"format": CHECKPOINT_FORMAT, **state}, temporary)
+    return Path(path)
+
+
+def read_checkpoint(path: Path) -> dict:
+    """Load and check a checkpoint file; a one-line InputError when it is missing, damaged or foreign."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"checkpoint {path} does not exist")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many types for damaged files
+        raise InputError(f"{path}: not a readable checkpoint ({type(error).__name__})") from error
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(f"{path}: not an hdrcam checkpoint (format {CHECKPOINT_FORMAT} expected)")
+    return state
+
+
+@dataclasses.dataclass
+class TrainedModel:
+    """A network ready to reconstruct, with the PSF and profile it was trained for."""
+
+    network: ReconstructionNet
+    psf: np.ndarray  # (3, S, S)
+    profile: str
+    preset: str
+    step: int
+    source: Path
+
+
+def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
+               random_vgg: bool = False) -> TrainedModel:
+    """The network of checkpoint ``path`` (default: the shipped one) in eval mode on the CPU."""
+    path = Path(path) if path else SHIPPED_CHECKPOINT
+    state = read_checkpoint(path)
+    preset = preset_named(state["preset"])
+    vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
+    network = ReconstructionNet(preset, vgg)
+    missing, unexpected = network.load_state_dict(state["network"], strict=False)
+    missing = [key for key in missing if not key.startswith("splitting.vgg.")]
+    if missing or unexpected:
+        raise InputError(f"{path}: network weights do not match preset {preset.name!r}")
+    network.eval()
+    return TrainedModel(network, state["psf"].numpy(), state["profile"], preset.name, int(state["step"]), path)

@@ -1,0 +1,39 @@
+"""Configuration of a training run (``hdrcam design`` and ``hdrcam finetune``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from hdrcam.recon.losses import LossWeights
+
+
+@dataclasses.dataclass
+class TrainConfig:
+    preset: str = "fast"
+    data: str = "procedural"  # 'procedural' or a folder of .exr/.hdr files
+    profile: str = "simulated"
+    doe: str | None = "rank1"  # trained height map: rank1 | freeform; None with a fixed psf
+    psf: str | None = None  # fixed PSF: dirac | star8 | dual-peak | a PSF EXR (network-only training)
+    steps: int = 1000
+    batch: int = 4
+    crop_px: int = 128  # multiple of 16 (the U-Net pools four times)
+    learning_rate: float = 1e-3  # network, Adam; polynomial decay to 0 at ``steps``
+    doe_learning_rate: float = 1e-2  # height-map parameters
+    decay_power: float = 0.9
+    seed: int = 0
+    checkpoint_every: int = 100
+    init_checkpoint: str | None = None  # start the network from this checkpoint (fine-tuning)
+    weights: LossWeights = dataclasses.field(default_factory=LossWeights)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, document: dict) -> "TrainConfig":
+        values = dict(document)
+        values["weights"] = LossWeights(**values.get("weights", {}))
+        return cls(**values)
+
+    def learning_rate_at(self, step: int, base: float) -> float:
+        """Polynomial decay: base (1 - step / steps)^power."""
+        return base * max(0.0, 1.0 - step / self.steps) ** self.decay_power

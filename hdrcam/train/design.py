@@ -1,0 +1,229 @@
+"""The training loop of ``hdrcam design`` (DOE + network end to end) and ``hdrcam finetune`` (network only).
+
+Each step draws a batch of exposure-scaled scenes, captures them through the simulated optics and sensor
+(:mod:`hdrcam.train.optical_capture`), reconstructs, and minimises Eq. 10 plus, when the DOE is trained,
+the energy regulariser (94 % of the PSF energy in the centre). Adam with polynomial decay.
+
+A run folder holds: config.json, log.jsonl (one line per step), checkpoint.pt (resumable, every
+``checkpoint_every`` steps and at the end), model.pt (the final network and PSF, no optimiser state),
+psf.exr, psf.png, loss.png and, for a trained DOE, heightmap.exr. ``resume`` continues from checkpoint.pt
+with the saved random states, so an interrupted run ends where an uninterrupted one would.
+
+Launched by ``torchrun --nproc_per_node K``, every process trains on its own batches and
+DistributedDataParallel averages the gradients (network and height map); only rank 0 writes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch import nn
+
+from hdrcam.data.scenes import SceneSource
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import write_text_atomic
+from hdrcam.io.exr import write_exr
+from hdrcam.io.png import write_png
+from hdrcam.optics.energy import energy_regulariser
+from hdrcam.optics.heightmap import save_heightmap
+from hdrcam.preview import line_plot, log_psf_rgb, radial_profile_plot, side_by_side
+from hdrcam.profiles import load_profile
+from hdrcam.progress import Progress
+from hdrcam.recon.losses import reconstruction_loss
+from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.presets import preset as preset_named
+from hdrcam.recon.vgg import load_vgg19
+from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
+from hdrcam.train.config import TrainConfig
+from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
+
+
+class DesignModel(nn.Module):
+    """Optics + network as one module, so DistributedDataParallel sees every trained parameter."""
+
+    def __init__(self, capture: OpticalCapture, network: ReconstructionNet):
+        super().__init__()
+        self.capture, self.network = capture, network
+
+    def forward(self, radiance: torch.Tensor, generator: torch.Generator):
+        ldr, centre_fraction = self.capture(radiance, generator)
+        return self.network(ldr), centre_fraction
+
+
+def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
+    profile = load_profile(config.profile)
+    preset = preset_named(config.preset)
+    vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
+    if config.psf is not None:
+        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile.simulation.psf_size_px))
+    else:
+        capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)
+    torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
+    network = ReconstructionNet(preset, vgg)
+    if config.init_checkpoint:
+        state = read_checkpoint(Path(config.init_checkpoint))
+        if state["preset"] != preset.name:
+            raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
+        network.load_state_dict(state["network"], strict=False)
+    return DesignModel(capture, network)
+
+
+def _distributed() -> tuple[int, int]:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world > 1 and not dist.is_initialized():
+        dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+    return (dist.get_rank(), world) if world > 1 else (0, 1)
+
+
+def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: Path | None = None,
+          random_vgg: bool = False, device: torch.device | None = None, quiet: bool = False,
+          stop_after: int | None = None) -> dict:
+    """Run (or continue) a training run in ``out``; returns the last logged step.
+
+    ``stop_after`` N: checkpoint and return after N steps of this call (training in time slices; continue
+    with ``resume``).
+    """
+    out = Path(out)
+    rank, world = _distributed()
+    device = device or torch.device(f"cuda:{rank % max(torch.cuda.device_count(), 1)}"
+                                    if torch.cuda.is_available() else "cpu")
+    if config.crop_px % 16:
+        raise InputError(f"--crop must be a multiple of 16, got {config.crop_px}")
+    checkpoint_path = out / "checkpoint.pt"
+    if checkpoint_path.exists() and not resume:
+        raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    if resume and not checkpoint_path.exists():
+        raise InputError(f"--resume: {checkpoint_path} does not exist")
+    saved = read_checkpoint(checkpoint_path) if resume else None
+    if saved is not None:
+        steps = config.steps
+        config = TrainConfig.from_dict(saved["config"])
+        config.steps = max(steps, config.steps)
+
+    source = SceneSource(config.data)
+    model = build_model(config, vgg_weights, random_vgg).to(device)
+    optimizer = torch.optim.Adam([
+        {"params": [p for p in model.network.parameters() if p.requires_grad], "lr": config.learning_rate,
+         "base_lr": config.learning_rate},
+        {"params": list(model.capture.parameters()), "lr": config.doe_learning_rate,
+         "base_lr": config.doe_learning_rate}])
+    rng = np.random.default_rng([config.seed, rank])
+    noise = torch.Generator(device=device).manual_seed(config.seed * 1000 + rank)
+    start = 0
+    if saved is not None:
+        model.network.load_state_dict(saved["network"], strict=False)
+        if saved["doe"] is not None:
+            model.capture.simulator.heightmap.load_state_dict(saved["doe"]["parameters"])
+        optimizer.load_state_dict(saved["optimizer"])
+        rng.bit_generator.state = saved["rng"]
+        noise.set_state(saved["noise_generator"])
+        start = int(saved["step"])
+    trained = DistributedDataParallelOrNot(model, world, device)
+    if rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=True)
+        log_lines = _log_lines(out / "log.jsonl", start)
+    progress = Progress(min(config.steps, start + (stop_after or config.steps)) - start, f"design {out.name}") if rank == 0 and not quiet else None
+    margin, last = model.capture.margin_px, {}
+    end = config.steps if stop_after is None else min(config.steps, start + stop_after)
+    model.train()
+    for step in range(start, end):
+        began = time.perf_counter()
+        for group in optimizer.param_groups:
+            group["lr"] = config.learning_rate_at(step, group["base_lr"])
+        scenes = np.stack([source.training_scene(config.crop_px, margin, rng) for _ in range(config.batch)])
+        radiance = torch.from_numpy(scenes).permute(0, 3, 1, 2).to(device)
+        target = radiance[..., margin:margin + config.crop_px, margin:margin + config.crop_px]
+        output, centre_fraction = trained(radiance, noise)
+        terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg)
+        if centre_fraction is not None:
+            terms["energy"] = config.weights.energy * energy_regulariser(centre_fraction, model.capture.energy_target)
+            terms["total"] = terms["total"] + terms["energy"]
+        optimizer.zero_grad(set_to_none=True)
+        terms["total"].backward()
+        optimizer.step()
+        if not all(torch.isfinite(value) for value in terms.values()):
+            raise InputError(f"training diverged at step {step + 1} (loss is not finite); lower --lr")
+        last = {"step": step + 1, **{k: round(float(v.detach()), 6) for k, v in terms.items()},
+                "lr": config.learning_rate_at(step, config.learning_rate),
+                "seconds": round(time.perf_counter() - began, 4)}
+        if centre_fraction is not None:
+            last["centre_energy"] = [round(float(v), 5) for v in centre_fraction.detach()]
+        if rank == 0:
+            log_lines.append(json.dumps(last))
+            if progress:
+                progress.step(f"loss {last['total']:.4f}")
+            if (step + 1) % config.checkpoint_every == 0 and step + 1 < end:
+                _save_run(out, model, config, optimizer, rng, noise, step + 1, log_lines)
+    if rank == 0:
+        _save_run(out, model, config, optimizer, rng, noise, end, log_lines)
+        if end == config.steps:
+            _write_results(out, model, config, log_lines)
+    return last
+
+
+def DistributedDataParallelOrNot(model: nn.Module, world: int, device: torch.device) -> nn.Module:
+    """The model itself on one process; wrapped in DistributedDataParallel under torchrun."""
+    if world == 1:
+        return model
+    return nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+
+
+def _log_lines(path: Path, start: int) -> list[str]:
+    """The log's lines up to step ``start`` (later ones belong to a run that was interrupted)."""
+    if not path.exists():
+        return []
+    return [line for line in path.read_text().splitlines() if line and json.loads(line)["step"] <= start]
+
+
+def checkpoint_state(model: DesignModel, config: TrainConfig, step: int) -> dict:
+    """What a checkpoint holds besides the optimiser and random states."""
+    with torch.no_grad():
+        psf, _ = model.capture.psf()
+    doe = None
+    if model.capture.simulator is not None:
+        heightmap = model.capture.simulator.heightmap
+        with torch.no_grad():
+            heights = heightmap().detach().cpu()
+        doe = {"kind": config.doe, "feature_pitch_m": heightmap.feature_pitch_m, "heights_m": heights,
+               "parameters": {k: v.detach().cpu() for k, v in heightmap.state_dict().items()}}
+    return {"preset": config.preset, "profile": config.profile, "step": step, "config": config.as_dict(),
+            "psf": psf.detach().cpu().float().contiguous(), "network": model.network.trainable_state(), "doe": doe}
+
+
+def _save_run(out: Path, model: DesignModel, config: TrainConfig, optimizer, rng, noise, step: int,
+              log_lines: list[str]) -> None:
+    write_text_atomic(out / "log.jsonl", "".join(line + "\n" for line in log_lines), overwrite=True)
+    state = checkpoint_state(model, config, step)
+    save_checkpoint(out / "checkpoint.pt", {**state, "optimizer": optimizer.state_dict(),
+                                            "rng": rng.bit_generator.state, "noise_generator": noise.get_state()})
+
+
+def _write_results(out: Path, model: DesignModel, config: TrainConfig, log_lines: list[str]) -> None:
+    state = checkpoint_state(model, config, config.steps)
+    save_checkpoint(out / "model.pt", state)
+    psf = state["psf"].numpy()
+    write_exr(out / "psf.exr", psf.transpose(1, 2, 0), channel_names=("R", "G", "B"), overwrite=True)
+    write_png(out / "psf.png", side_by_side([log_psf_rgb(psf), radial_profile_plot(psf)], height_px=384),
+              overwrite=True)
+    if state["doe"] is not None:
+        save_heightmap(out / "heightmap.exr", state["doe"]["heights_m"].numpy(), state["doe"]["feature_pitch_m"],
+                       overwrite=True)
+    records = [json.loads(line) for line in log_lines]
+    if records:
+        steps = np.array([r["step"] for r in records])
+        series = {name: (steps, _smoothed(np.array([r[name] for r in records])))
+                  for name in ("total", "unsaturated", "highlight", "fusion", "exclusion", "energy")
+                  if name in records[0]}
+        write_png(out / "loss.png", line_plot(series, f"{out.name}: training loss (smoothed)"), overwrite=True)
+
+
+def _smoothed(values: np.ndarray, window: int = 25) -> np.ndarray:
+    window = max(1, min(window, len(values)))
+    return np.convolve(values, np.ones(window) / window, mode="same") if window > 1 else values

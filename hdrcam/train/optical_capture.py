@@ -1,0 +1,88 @@
+"""The simulated camera a network trains through: DOE height map -> PSF -> sensor (paper Eqs. 1-8).
+
+Either the DOE is trained (``rank1`` or ``freeform`` height map, PSF from the wave-optics model of the
+profile's optics, recomputed every step so gradients reach the height map), or the PSF is fixed: one of
+the paper's hand-designed comparisons (``dirac``, ``star8``, ``dual-peak``, Table 2) or a PSF EXR such as
+a calibration record's measured psf.exr.
+
+Scenes come in padded by ``margin_px`` = PSF size // 2 on every side; the captured frame is the centre,
+so light from outside the crop spreads into it as it would on a full sensor.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from hdrcam.optics.analytic import dirac, dual_peak, star
+from hdrcam.optics.heightmap import heightmap_for_doe
+from hdrcam.optics.psf import OpticalSetup, PsfSimulator
+from hdrcam.optics.psf_file import load_psf
+from hdrcam.profiles import Profile
+from hdrcam.sensor import Sensor
+
+TRAINABLE_DOES = ("rank1", "freeform")
+FIXED_PSFS = ("dirac", "star8", "dual-peak")
+
+
+def fixed_psf(choice: str, size_px: int) -> np.ndarray:
+    """A hand-designed PSF of the paper's Table 2 (``size_px`` square) or a PSF EXR file."""
+    if choice == "dirac":
+        return dirac(size_px)
+    if choice == "star8":
+        return star(size_px, points=8)
+    if choice == "dual-peak":
+        return dual_peak(size_px)
+    return load_psf(Path(choice))
+
+
+class OpticalCapture(nn.Module):
+    """Radiance (N, 3, H + 2m, W + 2m) -> LDR frame (N, 3, H, W) in [0, 1] with shot/read noise and ADC."""
+
+    def __init__(self, profile: Profile, *, doe: str | None = None, psf: np.ndarray | None = None,
+                 seed: int = 0):
+        super().__init__()
+        if (doe is None) == (psf is None):
+            raise ValueError("give either a trainable DOE or a fixed PSF")
+        self.sensor = Sensor.from_camera(profile.camera)
+        self.energy_target = profile.simulation.energy_target
+        if doe is not None:
+            if doe not in TRAINABLE_DOES:
+                raise ValueError(f"trainable DOE must be one of {TRAINABLE_DOES}, got {doe!r}")
+            self.simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, doe,
+                                                                                                 seed=seed))
+            self.psf_size_px = self.simulator.setup.psf_size_px
+        else:
+            self.simulator = None
+            self.register_buffer("fixed", torch.from_numpy(np.ascontiguousarray(psf, dtype=np.float32)))
+            self.psf_size_px = int(psf.shape[-1])
+
+    @property
+    def margin_px(self) -> int:
+        return self.psf_size_px // 2
+
+    def psf(self) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """(3, S, S) PSF with unit sum per channel, and the centre energy fraction (None when fixed)."""
+        if self.simulator is None:
+            return self.fixed, None
+        result = self.simulator()
+        return result.psf, result.centre_energy_fraction
+
+    def forward(self, radiance: torch.Tensor, generator: torch.Generator | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        psf, centre_fraction = self.psf()
+        captured = self.sensor.capture(radiance, psf, generator=generator, differentiable=True)
+        margin = self.margin_px
+        return captured[..., margin:captured.shape[-2] - margin, margin:captured.shape[-1] - margin], centre_fraction
+
+
+def capture_scene(scene: np.ndarray, psf: np.ndarray, profile: Profile, seed: int = 0) -> np.ndarray:
+    """Render one frame: an (H + 2m) x (W + 2m) x 3 scene (m = PSF size // 2) -> H x W x 3 capture in [0, 1]."""
+    capture = OpticalCapture(profile, psf=psf)
+    with torch.no_grad():
+        frame, _ = capture(torch.from_numpy(np.ascontiguousarray(scene, np.float32)).permute(2, 0, 1)[None],
+                           torch.Generator().manual_seed(seed))
+    return frame[0].permute(1, 2, 0).numpy()

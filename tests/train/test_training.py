@@ -1,0 +1,116 @@
+"""Training: optimisation reduces the loss, the optics gradient trains the DOE, resume is exact."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hdrcam.errors import InputError
+from hdrcam.optics.energy import energy_regulariser
+from hdrcam.profiles import load_profile
+from hdrcam.recon.losses import LossWeights, reconstruction_loss
+from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.presets import preset
+from hdrcam.train.checkpoint import load_model, read_checkpoint
+from hdrcam.train.config import TrainConfig
+from hdrcam.train.design import train
+from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
+
+
+def test_a_few_steps_reduce_the_loss_on_a_fixed_batch():
+    torch.manual_seed(0)
+    radiance = torch.rand(2, 3, 32, 32) * 0.8
+    radiance[:, :, 10:13, 10:13] = 40.0
+    capture = OpticalCapture(load_profile("simulated"), psf=fixed_psf("star8", 15))
+    ldr, _ = capture(torch.nn.functional.pad(radiance, (7, 7, 7, 7)), torch.Generator().manual_seed(0))
+    network = ReconstructionNet(preset("fast"))
+    optimizer = torch.optim.Adam(network.parameters(), lr=1e-3)
+    losses = []
+    for _ in range(25):
+        loss = reconstruction_loss(network(ldr), radiance, LossWeights(), None)["total"]
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(float(loss.detach()))
+    assert losses[-1] < 0.6 * losses[0]
+
+
+def test_the_optics_gradient_trains_the_rank1_doe():
+    """Energy regulariser alone: the height map moves and the centre energy approaches the 94 % target."""
+    capture = OpticalCapture(load_profile("simulated"), doe="rank1", seed=0)
+    heightmap = capture.simulator.heightmap
+    initial_heights = heightmap().detach().clone()
+    _, fraction = capture.psf()
+    initial_gap = float((fraction.detach() - 0.94).abs().mean())
+    optimizer = torch.optim.Adam(heightmap.parameters(), lr=2e-2)
+    for _ in range(15):
+        _, fraction = capture.psf()
+        loss = energy_regulariser(fraction, 0.94)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    _, fraction = capture.psf()
+    final_gap = float((fraction.detach() - 0.94).abs().mean())
+    moved_m = float((heightmap().detach() - initial_heights).abs().max())
+    assert initial_gap > 0.015 and final_gap < initial_gap / 3
+    assert moved_m > 1e-8  # more than 1 % of h_max
+
+
+def test_reconstruction_loss_reaches_the_height_map():
+    capture = OpticalCapture(load_profile("simulated"), doe="rank1", seed=0)
+    network = ReconstructionNet(preset("fast"))
+    margin = capture.margin_px
+    radiance = torch.rand(1, 3, 32 + 2 * margin, 32 + 2 * margin)
+    radiance[..., 40:44, 40:44] = 100.0
+    ldr, _ = capture(radiance, torch.Generator().manual_seed(0))
+    target = radiance[..., margin:margin + 32, margin:margin + 32]
+    reconstruction_loss(network(ldr), target, LossWeights(), None)["total"].backward()
+    v, q = capture.simulator.heightmap.v, capture.simulator.heightmap.q
+    assert float(v.grad.abs().sum()) > 0 and float(q.grad.abs().sum()) > 0
+    assert torch.isfinite(v.grad).all() and torch.isfinite(q.grad).all()
+
+
+def _tiny(**changes) -> TrainConfig:
+    values = dict(steps=4, batch=1, crop_px=32, checkpoint_every=2, doe="rank1")
+    values.update(changes)
+    return TrainConfig(**values)
+
+
+def test_resume_continues_exactly_where_an_interrupted_run_would_be(tmp_path):
+    straight = train(_tiny(), tmp_path / "straight", quiet=True)
+    train(_tiny(), tmp_path / "resumed", quiet=True, stop_after=3)  # interrupted after step 3
+    assert not (tmp_path / "resumed" / "model.pt").exists()
+    resumed = train(_tiny(), tmp_path / "resumed", resume=True, quiet=True)
+    for key in ("total", "fusion", "energy"):
+        assert resumed[key] == pytest.approx(straight[key], rel=1e-5)
+    a, b = read_checkpoint(tmp_path / "straight" / "model.pt"), read_checkpoint(tmp_path / "resumed" / "model.pt")
+    assert all(torch.allclose(a["network"][k], b["network"][k], atol=1e-6) for k in a["network"])
+    assert torch.allclose(a["doe"]["heights_m"], b["doe"]["heights_m"], atol=1e-12)
+    log = [json.loads(line) for line in (tmp_path / "resumed" / "log.jsonl").read_text().splitlines()]
+    assert [entry["step"] for entry in log] == [1, 2, 3, 4]
+    for name in ("psf.exr", "psf.png", "loss.png", "heightmap.exr", "config.json"):
+        assert (tmp_path / "resumed" / name).is_file()
+    with pytest.raises(InputError, match="already holds a run"):
+        train(_tiny(), tmp_path / "straight", quiet=True)
+    with pytest.raises(InputError, match="does not exist"):
+        train(_tiny(), tmp_path / "nothing", resume=True, quiet=True)
+
+
+def test_fixed_psf_runs_train_only_the_network_and_load_back(tmp_path):
+    train(_tiny(doe=None, psf="dual-peak", steps=2), tmp_path / "run", quiet=True)
+    model = load_model(tmp_path / "run" / "model.pt")
+    assert np.allclose(model.psf, fixed_psf("dual-peak", load_profile("simulated").simulation.psf_size_px))
+    assert read_checkpoint(tmp_path / "run" / "model.pt")["doe"] is None
+    assert model.preset == "fast" and model.step == 2 and not model.network.training
+
+
+def test_damaged_checkpoints_are_one_line_errors(tmp_path):
+    (tmp_path / "junk.pt").write_bytes(b"\x00" * 100)
+    with pytest.raises(InputError, match="not a readable checkpoint"):
+        read_checkpoint(tmp_path / "junk.pt")
+    torch.save({"format": "something else"}, tmp_path / "foreign.pt")
+    with pytest.raises(InputError, match="not an hdrcam checkpoint"):
+        read_checkpoint(tmp_path / "foreign.pt")
+    with pytest.raises(InputError, match="does not exist"):
+        read_checkpoint(tmp_path / "missing.pt")
