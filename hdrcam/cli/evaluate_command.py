@@ -1,0 +1,74 @@
+"""``hdrcam evaluate``: score checkpoints on a test set against the LDR capture and HDR-CNN-style blending."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from hdrcam.cli.arguments import positive_int
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_writable
+
+
+def register(commands) -> None:
+    parser = commands.add_parser("evaluate", help="metrics and ablation tables on a test set",
+                                 description=__doc__)
+    parser.add_argument("--checkpoint", action="append", default=None, metavar="[LABEL=]FILE",
+                        help="a checkpoint to score; repeat for a comparison table (default: the shipped one)")
+    parser.add_argument("--psf", type=Path, default=None,
+                        help="capture through this PSF EXR instead of each checkpoint's own")
+    parser.add_argument("--data", default="procedural", help="'procedural' or a folder of .exr/.hdr files")
+    parser.add_argument("--size", type=positive_int, default=512, metavar="PX", help="test crop (multiple of 16)")
+    parser.add_argument("--count", type=positive_int, default=16, help="procedural test scenes (default 16)")
+    parser.add_argument("--seed", type=int, default=0, help="noise seed of the captures")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--vgg-weights", type=Path, default=None)
+    parser.add_argument("--overwrite", action="store_true")
+    parser.set_defaults(run=run)
+
+
+def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
+    if not entries:
+        return {"hdrcam": None}
+    labelled = {}
+    for entry in entries:
+        label, _, path = entry.rpartition("=")
+        path = Path(path)
+        label = label or (path.parent.name if path.name in ("model.pt", "checkpoint.pt") else path.stem)
+        if label in labelled or label in ("ldr", "hdrcnn-blend"):
+            raise InputError(f"checkpoint label {label!r} is used twice or reserved; write LABEL=FILE")
+        labelled[label] = path
+    return labelled
+
+
+def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.data.scenes import SceneSource
+    from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
+    from hdrcam.evaluate.test_run import evaluate_models
+    from hdrcam.optics.psf_file import load_psf
+    from hdrcam.progress import Progress
+    from hdrcam.train.checkpoint import load_model
+
+    if arguments.size % 16:
+        raise InputError(f"--size must be a multiple of 16, got {arguments.size}")
+    for name in OUTPUT_NAMES:
+        check_writable(arguments.out / name, overwrite=arguments.overwrite)
+    models = {label: load_model(path, vgg_weights=arguments.vgg_weights)
+              for label, path in _labelled(arguments.checkpoint).items()}
+    psf = load_psf(arguments.psf) if arguments.psf else None
+    source = SceneSource(arguments.data)
+    count = arguments.count if source.folder is None else len(source.folder)
+    started = time.perf_counter()
+    rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
+                                     seed=arguments.seed, progress=Progress(count, "evaluate"))
+    description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
+                   f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
+                   f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "
+                   f"Checkpoints: " + ", ".join(f"{label} = {model.source} (preset {model.preset}, step {model.step})"
+                                                for label, model in models.items()) + ".")
+    write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
+    print(summary_markdown(rows, description), end="")
+    print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/metrics.csv, summary.md, "
+          "examples.png")
+    return 0

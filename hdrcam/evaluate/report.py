@@ -1,0 +1,77 @@
+"""Evaluation outputs: metrics.csv (one row per image and method), summary.md (means) and examples.png."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from hdrcam.evaluate.test_run import Example, ScoredImage
+from hdrcam.io.atomic import write_text_atomic
+from hdrcam.io.png import write_png
+from hdrcam.preview import log_average_luminance, tonemap_rgb
+
+METRICS = ("psnr_linear", "pu21_psnr", "psnr_mu")
+OUTPUT_NAMES = ("metrics.csv", "summary.md", "examples.png")
+
+
+def method_means(rows: list[ScoredImage]) -> dict[str, dict[str, float]]:
+    """Mean of each metric per method, in the order methods first appear."""
+    means: dict[str, dict[str, float]] = {}
+    for method in dict.fromkeys(row.method for row in rows):
+        chosen = [row for row in rows if row.method == method]
+        means[method] = {metric: float(np.mean([row.metrics[metric] for row in chosen])) for metric in METRICS}
+    return means
+
+
+def write_metrics_csv(path: Path, rows: list[ScoredImage], *, overwrite: bool = False) -> None:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["image", "method", *METRICS, "clipped_fraction"])
+    for row in rows:
+        writer.writerow([row.image, row.method, *(f"{row.metrics[m]:.4f}" for m in METRICS),
+                         f"{row.clipped_fraction:.5f}"])
+    write_text_atomic(path, buffer.getvalue(), overwrite=overwrite)
+
+
+def summary_markdown(rows: list[ScoredImage], description: str, reference: str = "ldr") -> str:
+    means = method_means(rows)
+    images = len(dict.fromkeys(row.image for row in rows))
+    lines = [f"# Evaluation\n\n{description}\n\n{images} test images. Means over images; "
+             f"'vs {reference}' is the linear-PSNR gain over the row '{reference}'.\n",
+             "| method | PSNR linear (dB, peak 2^8) | vs " + reference + " (dB) | PU21-PSNR (dB) | PSNR-mu (dB) |",
+             "|---|---|---|---|---|"]
+    base = means.get(reference, {}).get("psnr_linear")
+    for method, value in means.items():
+        gain = "" if base is None else f"{value['psnr_linear'] - base:+.2f}"
+        lines.append(f"| {method} | {value['psnr_linear']:.2f} | {gain} | {value['pu21_psnr']:.2f} | "
+                     f"{value['psnr_mu']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def examples_figure(examples: list[Example], tile_px: int = 256) -> np.ndarray:
+    """Rows of tone-mapped images (truth, then each method), all at the truth's exposure."""
+    import cv2
+
+    rows = []
+    for example in examples:
+        exposure = log_average_luminance(example.truth)
+        panels = [("truth", example.truth), *example.outputs.items()]
+        tiles = []
+        for label, image in panels:
+            tile = cv2.resize(tonemap_rgb(image, log_average=exposure), (tile_px, tile_px),
+                              interpolation=cv2.INTER_AREA)
+            cv2.putText(tile, label, (4, 16), cv2.FONT_HERSHEY_PLAIN, 1.0, (255, 255, 0))
+            tiles.append(tile)
+        rows.append(np.concatenate(tiles, axis=1))
+    return np.concatenate(rows, axis=0)
+
+
+def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], description: str, *,
+                 overwrite: bool = False) -> None:
+    write_metrics_csv(out / "metrics.csv", rows, overwrite=overwrite)
+    write_text_atomic(out / "summary.md", summary_markdown(rows, description), overwrite=overwrite)
+    if examples:
+        write_png(out / "examples.png", examples_figure(examples), overwrite=overwrite)

@@ -1,0 +1,84 @@
+"""Run checkpoints over a fixed test set: capture through each checkpoint's PSF and sensor, reconstruct, score.
+
+Test scenes (hdrcam.data.scenes) are exposure-scaled so exactly 1.5 % of their pixels exceed 1 (the
+paper's test protocol). Each scene is captured with the same noise seed for every method. Rows:
+- ``ldr``: the captured frame itself (what a camera records), through the first checkpoint's PSF;
+- ``hdrcnn-blend``: HDR-CNN-style blending (Eilertsen et al.) of the frame with that checkpoint's
+  reconstruction, alpha ramping 0 -> 1 as the frame's brightest channel goes 0.95 -> 1: the network is
+  trusted only where the frame clipped;
+- one row per checkpoint (its label): the full reconstruction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+
+from hdrcam.data.saturation import clipped_fraction
+from hdrcam.data.scenes import SceneSource
+from hdrcam.evaluate.metrics import all_metrics
+from hdrcam.profiles import load_profile
+from hdrcam.train.checkpoint import TrainedModel
+from hdrcam.train.optical_capture import OpticalCapture
+
+BLEND_START = 0.95  # HDR-CNN's blending threshold on the brightest channel
+
+
+@dataclasses.dataclass
+class ScoredImage:
+    image: str
+    method: str
+    metrics: dict[str, float]
+    clipped_fraction: float
+
+
+@dataclasses.dataclass
+class Example:
+    image: str
+    truth: np.ndarray
+    outputs: dict[str, np.ndarray]  # method -> H x W x 3
+
+
+def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
+    """(1 - alpha) LDR + alpha reconstruction, alpha = clip((max_c LDR - 0.95) / 0.05, 0, 1)."""
+    alpha = np.clip((ldr.max(axis=-1, keepdims=True) - BLEND_START) / (1.0 - BLEND_START), 0.0, 1.0)
+    return (1.0 - alpha) * ldr + alpha * reconstruction
+
+
+def _to_image(tensor: torch.Tensor) -> np.ndarray:
+    return tensor[0].permute(1, 2, 0).detach().cpu().numpy().astype(np.float32)
+
+
+def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
+                    psf: np.ndarray | None = None, seed: int = 0, examples: int = 3,
+                    progress=None) -> tuple[list[ScoredImage], list[Example]]:
+    """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs."""
+    captures = {label: OpticalCapture(load_profile(model.profile), psf=model.psf if psf is None else psf)
+                for label, model in models.items()}
+    margin = max(capture.margin_px for capture in captures.values())
+    first = next(iter(models))
+    rows, shown = [], []
+    for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
+        truth = scene[margin:margin + size_px, margin:margin + size_px]
+        radiance = torch.from_numpy(scene).permute(2, 0, 1)[None]
+        fraction = clipped_fraction(truth)
+        outputs = {}
+        for label, model in models.items():
+            capture = captures[label]
+            crop = margin - capture.margin_px
+            local = radiance[..., crop:radiance.shape[-2] - crop, crop:radiance.shape[-1] - crop]
+            with torch.no_grad():
+                ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
+                reconstruction = _to_image(model.network(ldr).hdr)
+            if label == first:
+                outputs["ldr"] = _to_image(ldr)
+                outputs["hdrcnn-blend"] = hdrcnn_blend(outputs["ldr"], reconstruction)
+            outputs[label] = reconstruction
+        rows += [ScoredImage(name, method, all_metrics(image, truth), fraction) for method, image in outputs.items()]
+        if index < examples:
+            shown.append(Example(name, truth, outputs))
+        if progress:
+            progress.step(name)
+    return rows, shown
