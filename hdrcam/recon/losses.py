@@ -13,6 +13,10 @@ L = L_U + L_S + L_F (Eq. 10) + w_E L_energy (the 94 % PSF regulariser, design ru
 L_feat is the VGG-19 perceptual loss on conv2_2, conv3_2 and conv4_2 (``paper`` preset) or, without VGG,
 L1 of the image plus L1 of its x and y gradients (``lite``, ``fast``). The weights are ours: the paper does
 not print them.
+
+Class balance (ours): only 1-3 % of the pixels are saturated, so a plain mean lets the highlight terms
+learn "no highlight anywhere" (it did). The non-VGG L_S and L_F are therefore means over the saturated
+pixels (I > 1 in any channel) plus means over the rest; an empty saturation mask contributes 0.
 """
 
 from __future__ import annotations
@@ -57,14 +61,31 @@ def image_gradients(image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return image[..., :, 1:] - image[..., :, :-1], image[..., 1:, :] - image[..., :-1, :]
 
 
-def feature_loss(estimate: torch.Tensor, target: torch.Tensor, vgg: Vgg19Features | None) -> torch.Tensor:
-    """VGG perceptual loss (mean L1 over conv2_2, conv3_2, conv4_2) or, without VGG, L1 + gradient L1."""
+def saturation_mask(radiance: torch.Tensor) -> torch.Tensor:
+    """(N, 1, H, W) float: 1 where any channel of the true radiance exceeds 1."""
+    return (radiance.amax(dim=1, keepdim=True) > 1.0).to(radiance.dtype)
+
+
+def balanced_mean(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean over the masked pixels plus mean over the others (an empty set contributes 0)."""
+    mask = mask.expand_as(values)
+    inside = (values * mask).sum() / mask.sum().clamp(min=1.0)
+    outside = (values * (1.0 - mask)).sum() / (1.0 - mask).sum().clamp(min=1.0)
+    return inside + outside
+
+
+def feature_loss(estimate: torch.Tensor, target: torch.Tensor, vgg: Vgg19Features | None,
+                 mask: torch.Tensor | None = None) -> torch.Tensor:
+    """VGG perceptual loss (mean L1 over conv2_2, conv3_2, conv4_2) or, without VGG, L1 + gradient L1
+    (class-balanced over ``mask`` when given)."""
     if vgg is not None:
         estimated = vgg(estimate.clamp(0.0, 1.0), PERCEPTUAL_LAYERS)
         wanted = vgg(target.clamp(0.0, 1.0), PERCEPTUAL_LAYERS)
         return sum(F.l1_loss(estimated[name], wanted[name]) for name in PERCEPTUAL_LAYERS) / len(PERCEPTUAL_LAYERS)
     gradient_loss = sum(F.l1_loss(a, b) for a, b in zip(image_gradients(estimate), image_gradients(target)))
-    return F.l1_loss(estimate, target) + gradient_loss
+    if mask is None:
+        return F.l1_loss(estimate, target) + gradient_loss
+    return balanced_mean((estimate - target).abs(), mask) + gradient_loss
 
 
 def exclusion_loss(first: torch.Tensor, second: torch.Tensor, scales: int = 3) -> torch.Tensor:
@@ -84,22 +105,25 @@ def exclusion_loss(first: torch.Tensor, second: torch.Tensor, scales: int = 3) -
     return total / scales
 
 
-def sqrt_huber_loss(estimate: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """Eq. 15: Huber loss between (x + eps)^0.5 of the estimate and of the truth (negative x taken as 0)."""
-    return F.huber_loss(torch.sqrt(estimate.clamp(min=0.0) + SQRT_EPS), torch.sqrt(target.clamp(min=0.0) + SQRT_EPS),
-                        delta=HUBER_DELTA)
+def sqrt_huber_loss(estimate: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Eq. 15: Huber loss between (x + eps)^0.5 of the estimate and of the truth (negative x taken as 0);
+    class-balanced over ``mask`` when given."""
+    huber = F.huber_loss(torch.sqrt(estimate.clamp(min=0.0) + SQRT_EPS), torch.sqrt(target.clamp(min=0.0) + SQRT_EPS),
+                         delta=HUBER_DELTA, reduction="none")
+    return huber.mean() if mask is None else balanced_mean(huber, mask)
 
 
 def reconstruction_loss(output: Reconstruction, radiance: torch.Tensor, weights: LossWeights,
                         vgg: Vgg19Features | None) -> dict[str, torch.Tensor]:
     """The terms of Eq. 10 and their sum ``total`` (energy regulariser excluded: see train.design)."""
     unsaturated_target, highlight_target = stage_targets(radiance)
+    saturated = saturation_mask(radiance)
     terms = {
         "unsaturated": weights.feature_unsaturated * feature_loss(output.unsaturated, unsaturated_target, vgg),
         "exclusion": weights.exclusion * exclusion_loss(output.unsaturated, output.residual),
         "highlight": weights.feature_highlight * feature_loss(highlight_encoding(output.highlight),
-                                                              highlight_encoding(highlight_target), vgg),
-        "fusion": weights.fusion * sqrt_huber_loss(output.hdr, radiance),
+                                                              highlight_encoding(highlight_target), vgg, saturated),
+        "fusion": weights.fusion * sqrt_huber_loss(output.hdr, radiance, None if vgg is not None else saturated),
     }
     terms["total"] = sum(terms.values())
     return terms

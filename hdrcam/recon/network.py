@@ -38,7 +38,7 @@ class ReconstructionNet(nn.Module):
         if not highlights:
             ones = torch.ones_like(unsaturated)
             return Reconstruction(unsaturated, residual, ones, unsaturated.clamp(min=0.0))
-        highlight = self.highlight(residual)
+        highlight = self.highlight(residual, ldr)
         return Reconstruction(unsaturated, residual, highlight, self.fusion(unsaturated, highlight))
 
     def trainable_state(self) -> dict[str, torch.Tensor]:

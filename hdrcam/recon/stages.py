@@ -5,10 +5,14 @@
   6 channels: the unsaturated image I_U (3) and the residual I_r (3) that holds the encoded streaks.
   I_U is predicted as a correction of the input (I_U = LDR + first three channels): most of a frame is
   already its own unsaturated image, so the net only has to learn what to take away.
-- :class:`HighlightUNet` f_S: I_r -> the highlight image I_S in [1, 2^8]. Five scales joined by 2x2
-  max-pools; decoder: nearest upsampling + 3x3 conv, skip concatenation, two 3x3 convs. First layer 7x7,
-  last 1x1; InstanceNorm + LeakyReLU everywhere except the last two layers. Output 2^(8 sigmoid(y)), whose
-  final bias starts at -4 so an untrained net predicts I_S ~ 1 (no highlight).
+- :class:`HighlightUNet` f_S: (I_r, LDR) -> the highlight image I_S in [1, 2^8]. The paper feeds f_S the
+  residual alone; we also give it the frame, which shows where the sensor clipped: on a CPU budget the net
+  otherwise never learned to find the highlights (1000 steps left I_S = 1 everywhere). Five scales joined
+  by 2x2 max-pools; decoder: nearest upsampling + 3x3 conv, skip concatenation, two 3x3 convs. First layer
+  7x7, last 1x1; InstanceNorm + LeakyReLU everywhere except the last two layers. Output
+  I_S = exp(min(softplus(y), ln 2^8)): at least 1, at most 2^8, and unlike a sigmoid it does not saturate
+  at the bottom, where almost every pixel sits (a sigmoid output collapsed to I_S = 1 in training). The
+  final bias starts at -2, so an untrained net predicts I_S ~ 1.1.
 - :class:`FusionNet` f_F: two 3x3 convs on each of log I_U and log I_S, concatenated, 3x3 conv to
   C/2, 3x3 conv to 3. Its output y is a log-domain correction of the composite: I_hat = (I_U + I_S - 1)
   exp(y), which is exact when both stages are (I = min(I, 1) + max(I, 1) - 1). The last conv starts at
@@ -66,13 +70,13 @@ class SplittingNet(nn.Module):
 
 
 class HighlightUNet(nn.Module):
-    """f_S: I_r (N, 3, H, W) -> I_S in [1, 2^8]. H and W must be multiples of 16 (four pools)."""
+    """f_S: I_r and the LDR frame (N, 3, H, W each) -> I_S in [1, 2^8]. H and W multiples of 16 (four pools)."""
 
     def __init__(self, preset: NetworkPreset):
         super().__init__()
         widths = preset.unet_channels
         self.encoders = nn.ModuleList()
-        previous = 3
+        previous = 6
         for scale, width in enumerate(widths):
             first = _block(previous, width, kernel=7 if scale == 0 else 3)
             self.encoders.append(nn.Sequential(first, _block(width, width)))
@@ -86,16 +90,16 @@ class HighlightUNet(nn.Module):
             self.decoders.append(nn.Sequential(_block(2 * width, width),
                                                _block(width, width, norm=not last_scale)))
         self.exit = nn.Conv2d(widths[0], 3, 1)
-        nn.init.constant_(self.exit.bias, -4.0)
+        nn.init.constant_(self.exit.bias, -2.0)
         self.levels = len(widths)
 
-    def forward(self, residual: torch.Tensor) -> torch.Tensor:
+    def forward(self, residual: torch.Tensor, ldr: torch.Tensor) -> torch.Tensor:
         multiple = 2 ** (self.levels - 1)
         if residual.shape[-1] % multiple or residual.shape[-2] % multiple:
             raise ValueError(f"highlight U-Net input must be a multiple of {multiple} px, got "
                              f"{tuple(residual.shape[-2:])}")
         skips = []
-        value = residual
+        value = torch.cat([residual, ldr], dim=1)
         for scale, encoder in enumerate(self.encoders):
             if scale:
                 value = F.max_pool2d(value, 2)
@@ -104,7 +108,7 @@ class HighlightUNet(nn.Module):
         for upsample, decoder, skip in zip(self.upsamplers, self.decoders, reversed(skips[:-1])):
             value = upsample(F.interpolate(value, scale_factor=2, mode="nearest"))
             value = decoder(torch.cat([value, skip], dim=1))
-        return torch.exp(math.log(HIGHLIGHT_PEAK) * torch.sigmoid(self.exit(value)))
+        return torch.exp(F.softplus(self.exit(value)).clamp(max=math.log(HIGHLIGHT_PEAK)))
 
 
 class FusionNet(nn.Module):
