@@ -1,0 +1,100 @@
+"""``hdrcam reconstruct``: captured LDR frames -> linear HDR EXR (+ unreliable-pixel mask) and PNG previews."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hdrcam.cli.arguments import compute_device, positive_int
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_writable
+
+
+def register(commands) -> None:
+    parser = commands.add_parser("reconstruct", help="captured LDR frames -> HDR", description=__doc__)
+    parser.add_argument("inputs", nargs="+", type=Path, metavar="INPUT", help="RAW, EXR or 16-bit TIFF/PNG frames")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="network: a checkpoint, or an .onnx file from 'hdrcam export' run with onnxruntime "
+                             "(default: the shipped checkpoint)")
+    parser.add_argument("--psf", type=Path, default=None,
+                        help="the camera's measured PSF (calibration/NAME/psf.exr) for the streak check "
+                             "(default: the checkpoint's PSF)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--no-adaptive", dest="adaptive", action="store_false",
+                        help="run the network on every tile, also far from any clipped pixel")
+    parser.add_argument("--tile", type=positive_int, default=256, metavar="PX", help="tile core size (default 256)")
+    parser.add_argument("--halo", type=positive_int, default=64, metavar="PX", help="tile overlap per side")
+    parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
+    parser.add_argument("--precision", default="float32", choices=("float32", "float16", "bfloat16"),
+                        help="network precision; half precisions on CUDA only (they are slow on CPUs)")
+    parser.add_argument("--vgg-weights", type=Path, default=None)
+    parser.add_argument("--overwrite", action="store_true")
+    parser.set_defaults(run=run)
+
+
+def output_paths(out: Path, source: Path) -> tuple[Path, Path]:
+    return out / f"{source.stem}.exr", out / f"{source.stem}.png"
+
+
+def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.io.exr import write_exr
+    from hdrcam.io.ldr_frame import read_ldr_frame
+    from hdrcam.io.png import write_png
+    from hdrcam.optics.psf_file import load_psf
+    from hdrcam.preview import tonemap_rgb
+    from hdrcam.profiles import load_profile
+    from hdrcam.recon.export import OnnxNetwork
+    from hdrcam.progress import Progress
+    from hdrcam.recon.streaks import check_streaks
+    from hdrcam.recon.tiling import reconstruct_frame, window_count
+    from hdrcam.train.checkpoint import load_model
+
+    if (arguments.tile + 2 * arguments.halo) % 16:
+        raise InputError("--tile + 2 --halo must be a multiple of 16")
+    device = compute_device(arguments.device)
+    dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
+    if dtype != torch.float32 and device.type != "cuda":
+        raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
+    stems = [source.stem for source in arguments.inputs]
+    if len(set(stems)) != len(stems):
+        raise InputError("two inputs share a file name; their outputs would collide")
+    for source in arguments.inputs:
+        for path in output_paths(arguments.out, source):
+            check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
+    if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
+        network = OnnxNetwork(arguments.checkpoint)
+        network_psf, profile_name, source = network.psf, network.metadata["hdrcam_profile"], arguments.checkpoint
+    else:
+        model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
+        network, network_psf, profile_name, source = model.network, model.psf, model.profile, model.source
+    psf = load_psf(arguments.psf) if arguments.psf else network_psf
+    core_radius = load_profile(profile_name).simulation.energy_centre_radius_px
+    frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
+    progress = Progress(sum(window_count(*f.shape[:2], arguments.tile) for f in frames), "reconstruct")
+    for source, frame in zip(arguments.inputs, frames):
+        started = time.perf_counter()
+        hdr, report = reconstruct_frame(network, frame, psf_radius_px=psf.shape[-1] // 2,
+                                        adaptive=arguments.adaptive, core_px=arguments.tile,
+                                        halo_px=arguments.halo, device=device, dtype=dtype, progress=progress)
+        streaks = check_streaks(frame, psf, core_radius)
+        if streaks.warning():
+            warnings.warn(f"{source.name}: {streaks.warning()}")
+        exr_path, png_path = output_paths(arguments.out, source)
+        attributes = {"source": str(source), "checkpoint": str(source), "units": "relative radiance, 1.0 = "
+                      "sensor white at the capture's exposure", "colour": "camera RGB",
+                      "windows_run": report.windows_run, "windows": report.windows,
+                      "clipped_streak_pixels": streaks.clipped_streak_pixels}
+        pixels = np.concatenate([hdr, streaks.mask[..., None].astype(np.float32)], axis=-1)
+        write_exr(exr_path, pixels, channel_names=("R", "G", "B", "unreliable"), attributes=attributes,
+                  overwrite=arguments.overwrite)
+        write_png(png_path, tonemap_rgb(hdr), overwrite=arguments.overwrite)
+        print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
+                          "size": list(frame.shape[:2]), "seconds": round(time.perf_counter() - started, 2),
+                          "work": report.summary(), "clipped_streak_pixels": streaks.clipped_streak_pixels}))
+    return 0

@@ -1,0 +1,80 @@
+"""``hdrcam simulate``: what the camera records of an HDR scene through a PSF (linear EXR frame + the truth).
+
+The scene (``night`` for a seeded procedural night scene, or an HDR EXR/.hdr file) is exposure-scaled so
+that a set fraction of its pixels exceed white (default 1.5 %, the paper's test protocol), blurred by the
+PSF (light from outside the frame included), exposed with shot and read noise, clipped and quantised as
+the profile's sensor does. Writes FRAME (the capture, 0 .. 1) and, with --truth, the scaled scene.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hdrcam.cli.arguments import positive_float, positive_int
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_writable
+
+
+def register(commands) -> None:
+    parser = commands.add_parser("simulate", help="render what the camera records of an HDR scene",
+                                 description=__doc__)
+    parser.add_argument("scene", help="'night' or an HDR scene file (.exr, .hdr)")
+    parser.add_argument("--psf", default=None, help="PSF EXR, or dirac|star8|dual-peak (default: the checkpoint's)")
+    parser.add_argument("--checkpoint", type=Path, default=None, help="take PSF and profile from this checkpoint")
+    parser.add_argument("--out", type=Path, required=True, help="the captured frame (EXR)")
+    parser.add_argument("--truth", type=Path, default=None, help="also write the exposure-scaled scene here")
+    parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),
+                        help="frame size of a procedural scene (default 768 1024)")
+    parser.add_argument("--clipped-fraction", type=positive_float, default=0.015)
+    parser.add_argument("--seed", type=int, default=0, help="scene and noise seed")
+    parser.add_argument("--overwrite", action="store_true")
+    parser.set_defaults(run=run)
+
+
+def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.data.hdr_folder import read_hdr_image
+    from hdrcam.data.night_scene import night_scene
+    from hdrcam.data.saturation import clipped_fraction, scale_to_clipped_fraction
+    from hdrcam.io.exr import write_exr
+    from hdrcam.profiles import load_profile
+    from hdrcam.train.checkpoint import load_model
+    from hdrcam.train.optical_capture import FIXED_PSFS, capture_scene, fixed_psf
+
+    if not 0.0 < arguments.clipped_fraction < 1.0:
+        raise InputError("--clipped-fraction must lie between 0 and 1")
+    outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
+    scene_inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
+    for path in outputs:
+        check_writable(path, overwrite=arguments.overwrite, inputs=scene_inputs)
+    model = load_model(arguments.checkpoint) if arguments.checkpoint or not arguments.psf else None
+    profile = load_profile(model.profile if model else "simulated")
+    if arguments.psf:
+        if arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
+            raise InputError(f"--psf {arguments.psf} does not exist")
+        psf = fixed_psf(arguments.psf, profile.simulation.psf_size_px)
+    else:
+        psf = model.psf
+    margin = psf.shape[-1] // 2
+    if arguments.scene == "night":
+        height, width = arguments.size
+        scene = night_scene(height + 2 * margin, width + 2 * margin, seed=arguments.seed, sources=40)
+    else:
+        scene = np.pad(read_hdr_image(Path(arguments.scene)), ((margin, margin), (margin, margin), (0, 0)),
+                       mode="reflect")
+    inner = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
+    scene = scale_to_clipped_fraction(scene, arguments.clipped_fraction, scale_region=inner)
+    frame = capture_scene(scene, psf, profile, arguments.seed)
+    truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
+    attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}
+    write_exr(arguments.out, frame, channel_names=("R", "G", "B"), attributes=attributes, overwrite=arguments.overwrite)
+    if arguments.truth:
+        write_exr(arguments.truth, truth, channel_names=("R", "G", "B"), attributes=attributes,
+                  overwrite=arguments.overwrite)
+    print(json.dumps({"frame": str(arguments.out), "truth": str(arguments.truth) if arguments.truth else None,
+                      "size": list(frame.shape[:2]), "clipped_fraction_scene": round(clipped_fraction(truth), 5),
+                      "clipped_fraction_frame": round(float(np.mean(frame.max(axis=-1) >= 0.99)), 5)}))
+    return 0

@@ -1,0 +1,57 @@
+"""Captured LDR frames for reconstruction, as H x W x 3 float32 camera RGB relative to white (0 .. 1).
+
+- RAW (.arw, .dng, ...): black level subtracted per CFA position, divided by (white - black), bilinear
+  demosaic, clipped to [0, 1]. No white balance or colour matrix: the network works in camera RGB, the
+  space in which the PSF is measured.
+- EXR: linear RGB taken as is (1.0 = white).
+- 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
+Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.errors import InputError
+from hdrcam.hdr.demosaic import demosaic_bilinear
+from hdrcam.io.exr import read_exr
+from hdrcam.io.raw import read_raw
+
+RAW_SUFFIXES = (".arw", ".dng", ".nef", ".cr2", ".cr3", ".raf", ".orf", ".rw2")
+IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
+LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
+
+
+def read_ldr_frame(path: Path) -> np.ndarray:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix in RAW_SUFFIXES:
+        frame = read_raw(path)
+        black = np.tile(frame.metadata.black_level_tile(), (frame.bayer_dn.shape[0] // 2 + 1,
+                                                            frame.bayer_dn.shape[1] // 2 + 1))
+        black = black[:frame.bayer_dn.shape[0], :frame.bayer_dn.shape[1]]
+        relative = (frame.bayer_dn.astype(np.float32) - black) / (frame.metadata.white_level_dn - black)
+        rgb = demosaic_bilinear(np.clip(relative, 0.0, 1.0), frame.metadata.cfa_pattern)
+    elif suffix == ".exr":
+        rgb = read_exr(path).rgb()
+    elif suffix in IMAGE_SUFFIXES:
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if image is None or image.ndim != 3 or image.shape[2] < 3:
+            raise InputError(f"{path}: cannot read as an RGB image")
+        if image.dtype != np.uint16:
+            raise InputError(f"{path}: {image.dtype} pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
+                             "an EXR or a RAW file")
+        rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
+    else:
+        raise InputError(f"{path}: unknown frame type {suffix!r} (RAW, EXR, 16-bit TIFF or PNG)")
+    if not np.isfinite(rgb).all():
+        raise InputError(f"{path}: frame has NaN or Inf pixels")
+    if float(rgb.max()) > LDR_TOLERANCE:
+        raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
+                         "capture (give the camera frame, not an HDR image)")
+    return np.clip(rgb, 0.0, 1.0).astype(np.float32)
