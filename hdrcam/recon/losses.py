@@ -15,8 +15,12 @@ L1 of the image plus L1 of its x and y gradients (``lite``, ``fast``). The weigh
 not print them.
 
 Class balance (ours): only 1-3 % of the pixels are saturated, so a plain mean lets the highlight terms
-learn "no highlight anywhere" (it did). The non-VGG L_S and L_F are therefore means over the saturated
-pixels (I > 1 in any channel) plus means over the rest; an empty saturation mask contributes 0.
+learn "no highlight anywhere" (it did). The non-VGG L_S and L_F are therefore means over the highlight
+region plus means over the rest; an empty region contributes 0. The highlight region is where the truth
+exceeds 1 (weight 1) or the frame clipped although the truth does not (weight HALO_WEIGHT): the PSF's core
+makes a clipped blob larger than the source. Leaving that halo out of the region let the net paint whole
+blobs several times too bright; giving it full weight made "no highlight" the median answer until the net
+can localise sources, and training collapsed to I_S = 1.
 """
 
 from __future__ import annotations
@@ -61,13 +65,23 @@ def image_gradients(image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return image[..., :, 1:] - image[..., :, :-1], image[..., 1:, :] - image[..., :-1, :]
 
 
-def saturation_mask(radiance: torch.Tensor) -> torch.Tensor:
-    """(N, 1, H, W) float: 1 where any channel of the true radiance exceeds 1."""
-    return (radiance.amax(dim=1, keepdim=True) > 1.0).to(radiance.dtype)
+CLIPPED_LEVEL = 0.99  # a frame pixel whose brightest channel reaches this counts as clipped
+HALO_WEIGHT = 0.25
+
+
+def highlight_region(radiance: torch.Tensor, ldr: torch.Tensor | None = None) -> torch.Tensor:
+    """(N, 1, H, W) weights in [0, 1]: 1 where any channel of the true radiance exceeds 1, HALO_WEIGHT where
+    only the frame clipped, 0 elsewhere."""
+    region = (radiance.amax(dim=1, keepdim=True) > 1.0).to(radiance.dtype)
+    if ldr is not None:
+        halo = (ldr.amax(dim=1, keepdim=True) >= CLIPPED_LEVEL).to(radiance.dtype) * (1.0 - region)
+        region = region + HALO_WEIGHT * halo
+    return region
 
 
 def balanced_mean(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Mean over the masked pixels plus mean over the others (an empty set contributes 0)."""
+    """Weighted mean over the region (weights ``mask`` in [0, 1]) plus the mean over its complement
+    (weights 1 - mask); an empty side contributes 0."""
     mask = mask.expand_as(values)
     inside = (values * mask).sum() / mask.sum().clamp(min=1.0)
     outside = (values * (1.0 - mask)).sum() / (1.0 - mask).sum().clamp(min=1.0)
@@ -114,10 +128,11 @@ def sqrt_huber_loss(estimate: torch.Tensor, target: torch.Tensor, mask: torch.Te
 
 
 def reconstruction_loss(output: Reconstruction, radiance: torch.Tensor, weights: LossWeights,
-                        vgg: Vgg19Features | None) -> dict[str, torch.Tensor]:
-    """The terms of Eq. 10 and their sum ``total`` (energy regulariser excluded: see train.design)."""
+                        vgg: Vgg19Features | None, ldr: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+    """The terms of Eq. 10 and their sum ``total`` (energy regulariser excluded: see train.design);
+    ``ldr``, the network's input, widens the highlight region to the pixels it clipped."""
     unsaturated_target, highlight_target = stage_targets(radiance)
-    saturated = saturation_mask(radiance)
+    saturated = highlight_region(radiance, ldr)
     terms = {
         "unsaturated": weights.feature_unsaturated * feature_loss(output.unsaturated, unsaturated_target, vgg),
         "exclusion": weights.exclusion * exclusion_loss(output.unsaturated, output.residual),

@@ -53,7 +53,7 @@ class DesignModel(nn.Module):
 
     def forward(self, radiance: torch.Tensor, generator: torch.Generator):
         ldr, centre_fraction = self.capture(radiance, generator)
-        return self.network(ldr), centre_fraction
+        return self.network(ldr), centre_fraction, ldr
 
 
 def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
@@ -61,7 +61,8 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool)
     preset = preset_named(config.preset)
     vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
     if config.psf is not None:
-        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile.simulation.psf_size_px))
+        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile.simulation.psf_size_px),
+                                 windshield=config.psf == "windshield")
     else:
         capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)
     torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
@@ -140,8 +141,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         scenes = np.stack([source.training_scene(config.crop_px, margin, rng) for _ in range(config.batch)])
         radiance = torch.from_numpy(scenes).permute(0, 3, 1, 2).to(device)
         target = radiance[..., margin:margin + config.crop_px, margin:margin + config.crop_px]
-        output, centre_fraction = trained(radiance, noise)
-        terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg)
+        output, centre_fraction, ldr = trained(radiance, noise)
+        terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg, ldr.detach())
         if centre_fraction is not None:
             terms["energy"] = config.weights.energy * energy_regulariser(centre_fraction, model.capture.energy_target)
             terms["total"] = terms["total"] + terms["energy"]
