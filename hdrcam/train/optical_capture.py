@@ -3,7 +3,8 @@
 Either the DOE is trained (``rank1`` or ``freeform`` height map, PSF from the wave-optics model of the
 profile's optics, recomputed every step so gradients reach the height map), or the PSF is fixed: one of
 the paper's hand-designed comparisons (``dirac``, ``star8``, ``dual-peak``, Table 2) or a PSF EXR such as
-a calibration record's measured psf.exr.
+a calibration record's measured psf.exr. ``windshield`` draws a new 2-point star (a windshield streak)
+for every batch, rotated by an angle from (-8, -2.5) U (2.5, 8) degrees (paper Sec. 7).
 
 Scenes come in padded by ``margin_px`` = PSF size // 2 on every side; the captured frame is the centre,
 so light from outside the crop spreads into it as it would on a full sensor.
@@ -17,7 +18,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from hdrcam.optics.analytic import dirac, dual_peak, star
+from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, dirac, dual_peak, star, two_point_star
 from hdrcam.optics.heightmap import heightmap_for_doe
 from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.optics.psf_file import load_psf
@@ -25,7 +26,8 @@ from hdrcam.profiles import Profile
 from hdrcam.sensor import Sensor
 
 TRAINABLE_DOES = ("rank1", "freeform")
-FIXED_PSFS = ("dirac", "star8", "dual-peak")
+FIXED_PSFS = ("dirac", "star8", "dual-peak", "windshield")
+WINDSHIELD_REFERENCE_DEG = 5.0  # the angle of the PSF stored with a windshield model
 
 
 def fixed_psf(choice: str, size_px: int) -> np.ndarray:
@@ -36,6 +38,8 @@ def fixed_psf(choice: str, size_px: int) -> np.ndarray:
         return star(size_px, points=8)
     if choice == "dual-peak":
         return dual_peak(size_px)
+    if choice == "windshield":
+        return two_point_star(size_px, WINDSHIELD_REFERENCE_DEG)
     return load_psf(Path(choice))
 
 
@@ -43,8 +47,9 @@ class OpticalCapture(nn.Module):
     """Radiance (N, 3, H + 2m, W + 2m) -> LDR frame (N, 3, H, W) in [0, 1] with shot/read noise and ADC."""
 
     def __init__(self, profile: Profile, *, doe: str | None = None, psf: np.ndarray | None = None,
-                 seed: int = 0):
+                 seed: int = 0, windshield: bool = False):
         super().__init__()
+        self.windshield = windshield
         if (doe is None) == (psf is None):
             raise ValueError("give either a trainable DOE or a fixed PSF")
         self.sensor = Sensor.from_camera(profile.camera)
@@ -74,9 +79,18 @@ class OpticalCapture(nn.Module):
     def forward(self, radiance: torch.Tensor, generator: torch.Generator | None = None
                 ) -> tuple[torch.Tensor, torch.Tensor | None]:
         psf, centre_fraction = self.psf()
+        if self.windshield and self.training:
+            psf = torch.from_numpy(two_point_star(self.psf_size_px, _windshield_angle_deg(generator))).to(psf)
         captured = self.sensor.capture(radiance, psf, generator=generator, differentiable=True)
         margin = self.margin_px
         return captured[..., margin:captured.shape[-2] - margin, margin:captured.shape[-1] - margin], centre_fraction
+
+
+def _windshield_angle_deg(generator: torch.Generator | None) -> float:
+    """Uniform over (-8, -2.5) U (2.5, 8) degrees, drawn from ``generator``."""
+    side, position = torch.rand(2, generator=generator).tolist()
+    low, high = WINDSHIELD_ROTATION_DEG[int(side * 2)]
+    return low + (high - low) * position
 
 
 def capture_scene(scene: np.ndarray, psf: np.ndarray, profile: Profile, seed: int = 0) -> np.ndarray:
