@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -70,6 +71,8 @@ def _train(config: TrainConfig, arguments: argparse.Namespace) -> int:
     started = time.perf_counter()
     last = train(config, arguments.out, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
                  random_vgg=arguments.random_vgg, device=compute_device(arguments.device))
+    if os.environ.get("RANK", "0") != "0":  # under torchrun only the first process reports
+        return 0
     print(json.dumps({"run": str(arguments.out), "model": str(arguments.out / "model.pt"),
                       "seconds": round(time.perf_counter() - started, 1), "last_step": last}))
     return 0

@@ -18,7 +18,8 @@ def test_console_script_help_lists_the_commands():
     assert result.returncode == 0 and "psf" in result.stdout and "fabricate" in result.stdout
 
 
-@pytest.mark.parametrize("command", ["psf", "fabricate", "capture", "ingest"])
+@pytest.mark.parametrize("command", ["psf", "fabricate", "capture", "ingest", "design", "finetune", "evaluate",
+                                     "simulate", "reconstruct", "demo"])
 def test_each_command_has_help(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([command, "--help"])

@@ -40,8 +40,9 @@ def relative_rms(estimate, truth, mask):
 
 
 def test_merge_is_within_10_percent_of_an_oracle_that_knows_the_true_exposures(tmp_path):
-    """Scene spans 0.005 .. 256 relative radiance (> 1e4:1) plus the zero-noise floor; 7 % label errors."""
-    bracket, truth = capture(tmp_path, seed=3, exposure_error=0.07)
+    """Scene spans 0.005 .. 256 relative radiance (> 1e4:1) plus the zero-noise floor; 7 % label errors.
+    (Seed 4: since night scenes gained lit signs, seed 3's 96 x 128 crop spans only 6.4e3:1.)"""
+    bracket, truth = capture(tmp_path, seed=4, exposure_error=0.07)
     frames = read_bracket([tmp_path])
     merged = merge_bayer(frames, PROFILE.camera)
     true_exposures = np.array([f.true_exposure_s for f in bracket.frames])

@@ -1,0 +1,181 @@
+"""design / finetune / evaluate / simulate / reconstruct / demo from the command line, and their bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import cv2
+import numpy as np
+import OpenEXR
+import pytest
+
+from hdrcam.cli import main
+from hdrcam.io.exr import read_exr, write_exr
+from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model
+
+TINY = ["--steps", "2", "--crop", "32", "--batch", "1"]
+
+
+def _one_line_error(capsys, text: str) -> None:
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and text in error, error
+
+
+def test_shipped_checkpoint_loads():
+    model = load_model()
+    assert model.preset == "fast" and model.profile == "simulated" and model.step >= 1000
+    assert model.psf.shape == (3, 63, 63) and np.allclose(model.psf.sum(axis=(1, 2)), 1.0, atol=1e-5)
+    assert SHIPPED_CHECKPOINT.stat().st_size < 5e6
+
+
+def test_design_evaluate_and_finetune(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["design", *TINY, "--psf", "star8", "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["design", *TINY, "--psf", "star8", "--out", str(run)]) == 1
+    _one_line_error(capsys, "already holds a run")
+    evaluation = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", f"mine={run / 'model.pt'}", "--size", "32", "--count", "2",
+                 "--out", str(evaluation)]) == 0
+    rows = list(csv.DictReader((evaluation / "metrics.csv").open()))
+    assert [row["method"] for row in rows] == ["ldr", "hdrcnn-blend", "mine"] * 2
+    assert all(np.isfinite(float(row[k])) for row in rows for k in ("psnr_linear", "pu21_psnr", "psnr_mu"))
+    assert "| mine |" in (evaluation / "summary.md").read_text() and (evaluation / "examples.png").is_file()
+    capsys.readouterr()
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--size", "32", "--count", "2",
+                 "--out", str(evaluation)]) == 1  # never overwrites
+    _one_line_error(capsys, "already exists")
+    fine = tmp_path / "fine"
+    assert main(["finetune", "--checkpoint", str(run / "model.pt"), "--psf", "calibration/simulated-rank1/psf.exr",
+                 *TINY, "--out", str(fine)]) == 0
+    assert load_model(fine / "model.pt").psf.shape == (3, 63, 63)
+    capsys.readouterr()
+    assert main(["finetune", "--psf", str(tmp_path / "missing.exr"), *TINY, "--out", str(tmp_path / "f2")]) == 1
+    _one_line_error(capsys, "does not exist")
+
+
+def test_paper_preset_without_vgg_weights_stops_with_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("HDRCAM_VGG19_WEIGHTS", raising=False)
+    assert main(["design", "--preset", "paper", *TINY, "--out", str(tmp_path / "paper")]) == 1
+    _one_line_error(capsys, "needs VGG-19 weights")
+
+
+@pytest.fixture(scope="module")
+def night_frame(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("night")
+    assert main(["simulate", "night", "--size", "96", "160", "--seed", "2", "--out", str(folder / "frame.exr"),
+                 "--truth", str(folder / "truth.exr")]) == 0
+    return folder
+
+
+def test_simulate_renders_a_clipped_frame_and_its_truth(night_frame):
+    frame, truth = read_exr(night_frame / "frame.exr").rgb(), read_exr(night_frame / "truth.exr").rgb()
+    assert frame.shape == truth.shape == (96, 160, 3)
+    assert frame.min() >= 0.0 and frame.max() <= 1.0 and truth.max() > 1.0
+    assert np.mean(truth.max(axis=-1) > 1.0) == pytest.approx(0.015, abs=2 / truth[..., 0].size)
+
+
+def test_reconstruct_writes_hdr_mask_and_preview(night_frame, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    result = read_exr(out / "frame.exr")
+    assert set(result.channels) == {"R", "G", "B", "unreliable"} and np.isfinite(result.rgb()).all()
+    assert result.rgb().shape == (96, 160, 3) and (out / "frame.png").is_file()
+    assert "windows" in report["work"]
+    before = (out / "frame.exr").read_bytes()
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
+    _one_line_error(capsys, "already exists")
+    assert (out / "frame.exr").read_bytes() == before
+
+
+def test_reconstruct_reads_16_bit_tiff(tmp_path):
+    frame = (np.random.default_rng(0).random((40, 50, 3)) * 0.5 * 65535).astype(np.uint16)
+    frame[10, 10] = 65535
+    cv2.imwrite(str(tmp_path / "frame.tif"), frame)
+    assert main(["reconstruct", str(tmp_path / "frame.tif"), "--out", str(tmp_path / "out")]) == 0
+    assert read_exr(tmp_path / "out" / "frame.exr").rgb().shape == (40, 50, 3)
+
+
+def test_reconstruct_bad_inputs_are_one_line_errors(tmp_path, capsys):
+    nan = np.full((32, 32, 3), 0.5, np.float32)
+    nan[3, 3, 1] = np.nan
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": nan}).write(str(tmp_path / "nan.exr"))
+    write_exr(tmp_path / "hdr.exr", np.full((32, 32, 3), 300.0, np.float32))
+    cv2.imwrite(str(tmp_path / "eight.png"), np.zeros((8, 8, 3), np.uint8))
+    (tmp_path / "damaged.exr").write_bytes(b"v/1\x01" + b"\x00" * 40)
+    cases = {"nan.exr": "NaN or Inf", "hdr.exr": "not an LDR capture", "eight.png": "gamma-encoded",
+             "missing.exr": "does not exist", "damaged.exr": "damaged.exr"}
+    for name, message in cases.items():
+        assert main(["reconstruct", str(tmp_path / name), "--out", str(tmp_path / "out")]) == 1, name
+        _one_line_error(capsys, message)
+    assert not (tmp_path / "out").exists()
+    assert main(["reconstruct", str(tmp_path / "hdr.exr"), "--precision", "float16", "--device", "cpu",
+                 "--out", str(tmp_path / "out")]) == 1
+    _one_line_error(capsys, "needs a CUDA device")
+
+
+def test_demo_runs_the_whole_chain(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--finetune-steps", "1", "--size", "128", "192"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(summary["psnr_linear_db"]) == {"ldr", "reconstruction"}
+    assert all(np.isfinite(v) for v in summary["psnr_linear_db"].values())
+    for name in ("index.md", "3-calibration/psf.exr", "4-finetune/model.pt", "6-reconstruction/5-night-frame.exr",
+                 "preview-reconstruction.png", "2-calibration-fused.exr"):
+        assert (out / name).is_file(), name
+    assert main(["demo", "--out", str(out)]) == 1  # never overwrites a finished demo
+    _one_line_error(capsys, "not empty")
+
+
+def test_exports_agree_with_the_torch_path(night_frame, tmp_path, capsys):
+    pytest.importorskip("onnxruntime")
+    assert main(["export", "--format", "torchscript", "--out", str(tmp_path / "net.pt")]) == 0
+    assert main(["export", "--format", "onnx", "--out", str(tmp_path / "net.onnx")]) == 0
+    import torch
+
+    model = load_model()
+    frame = torch.from_numpy(read_exr(night_frame / "frame.exr").rgb()).permute(2, 0, 1)[None]
+    with torch.no_grad():
+        reference = model.network(frame).hdr
+        scripted = torch.jit.load(str(tmp_path / "net.pt"))(frame)
+    assert torch.allclose(scripted, reference, rtol=1e-5, atol=1e-5)
+    for checkpoint, name in ((None, "torch"), (tmp_path / "net.onnx", "onnx")):
+        argv = ["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / name)]
+        assert main(argv + (["--checkpoint", str(checkpoint)] if checkpoint else [])) == 0
+    torch_hdr = read_exr(tmp_path / "torch" / "frame.exr").rgb()
+    onnx_hdr = read_exr(tmp_path / "onnx" / "frame.exr").rgb()
+    # onnxruntime's kernels round differently; InstanceNorm and the exp() of the fusion amplify it a little
+    from hdrcam.evaluate.metrics import psnr_linear
+
+    assert psnr_linear(onnx_hdr, torch_hdr) > 80.0
+    relative = np.abs(onnx_hdr - torch_hdr) / np.maximum(np.abs(torch_hdr), 1e-2)
+    assert np.mean(relative > 1e-2) < 1e-3
+    capsys.readouterr()
+    assert main(["export", "--format", "onnx", "--out", str(tmp_path / "net.onnx")]) == 1
+    _one_line_error(capsys, "already exists")
+
+
+def test_destreak_trains_on_windshield_streaks_and_removes_them(tmp_path, capsys, night_frame):
+    from hdrcam.train.optical_capture import _windshield_angle_deg
+
+    import torch
+
+    generator = torch.Generator().manual_seed(0)
+    angles = [_windshield_angle_deg(generator) for _ in range(200)]
+    assert all(2.5 <= abs(a) <= 8.0 for a in angles) and min(angles) < 0 < max(angles)
+    run = tmp_path / "windshield"
+    assert main(["design", "--psf", "windshield", *TINY, "--out", str(run)]) == 0
+    out = tmp_path / "clean"
+    assert main(["destreak", str(night_frame / "frame.exr"), "--checkpoint", str(run / "model.pt"),
+                 "--out", str(out)]) == 0
+    clean = read_exr(out / "frame.exr").rgb()
+    assert clean.shape == (96, 160, 3) and clean.min() >= 0.0 and clean.max() <= 1.0
+    capsys.readouterr()
+    other = tmp_path / "other"
+    assert main(["design", "--psf", "dirac", *TINY, "--out", str(other)]) == 0
+    capsys.readouterr()
+    assert main(["destreak", str(night_frame / "frame.exr"), "--checkpoint", str(other / "model.pt"),
+                 "--out", str(tmp_path / "o")]) == 1
+    _one_line_error(capsys, "not trained on windshield streaks")

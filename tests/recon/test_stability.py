@@ -1,0 +1,46 @@
+"""Numerical stability of the trained network and the pipeline at the extremes (shipped checkpoint)."""
+
+import numpy as np
+import pytest
+import torch
+
+from hdrcam.recon.tiling import reconstruct_frame
+from hdrcam.train.checkpoint import load_model
+from hdrcam.train.optical_capture import capture_scene
+from hdrcam.profiles import load_profile
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model()
+
+
+@pytest.mark.parametrize("name, frame", [
+    ("all dark", np.zeros((64, 96, 3), np.float32)),
+    ("all clipped", np.ones((64, 96, 3), np.float32)),
+    ("one clipped pixel", np.pad(np.ones((1, 1, 3), np.float32), ((30, 33), (40, 55), (0, 0)), constant_values=0.05)),
+    ("tiny values", np.full((64, 96, 3), 1e-7, np.float32)),
+])
+@pytest.mark.parametrize("adaptive", [True, False])
+def test_reconstruction_is_finite_and_bounded(model, name, frame, adaptive):
+    hdr, report = reconstruct_frame(model.network, frame, psf_radius_px=31, adaptive=adaptive)
+    assert np.isfinite(hdr).all() and hdr.min() >= 0.0 and hdr.max() <= 256.0 * 1.0001, name
+    if adaptive and frame.max() < 0.99:
+        assert report.windows_run == 0 and np.array_equal(hdr, frame)
+
+
+def test_network_gradients_are_finite_on_extreme_inputs(model):
+    network = model.network.train()
+    for value in (0.0, 1.0):
+        ldr = torch.full((1, 3, 32, 32), value, requires_grad=True)
+        output = network(ldr)
+        (output.hdr.mean() + output.highlight.mean()).backward()
+        assert torch.isfinite(ldr.grad).all()
+    network.eval()
+
+
+def test_capture_of_radiance_far_beyond_two_to_the_eight_clips_cleanly(model):
+    scene = np.full((64 + 62, 64 + 62, 3), 0.01, np.float32)
+    scene[60:63, 60:63] = 1e6  # 1e8 : 1 against the background
+    frame = capture_scene(scene, model.psf, load_profile(model.profile), seed=0)
+    assert np.isfinite(frame).all() and frame.max() == 1.0 and frame.min() >= 0.0
