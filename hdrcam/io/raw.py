@@ -9,8 +9,11 @@ override ISO.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as dt
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +71,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if not path.is_file():
         raise InputError(f"{path}: no such RAW file")
     try:
-        with rawpy.imread(str(path)) as raw:
+        with _libraw_stderr_silenced(), rawpy.imread(str(path)) as raw:
             if raw.raw_type != rawpy.RawType.Flat or raw.num_colors != 3:
                 raise InputError(f"{path}: not a Bayer RAW file (LibRaw: {raw.raw_type}, {raw.num_colors} colours)")
             tile = raw.raw_pattern[:2, :2].ravel()
@@ -94,6 +97,21 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if not metadata.exposure_s > 0:
         raise InputError(f"{path}: the file has no exposure time; give the exposures in a bracket.json")
     return metadata, bayer
+
+
+@contextlib.contextmanager
+def _libraw_stderr_silenced():
+    """Send file descriptor 2 to /dev/null while LibRaw runs: its C code prints its own lines (e.g.
+    "Unexpected end of file") for damaged files, which hdrcam already reports in one line of its own."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _tiff_tags(path: Path) -> tuple[str | None, float | None]:

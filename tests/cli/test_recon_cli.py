@@ -179,3 +179,30 @@ def test_destreak_trains_on_windshield_streaks_and_removes_them(tmp_path, capsys
     assert main(["destreak", str(night_frame / "frame.exr"), "--checkpoint", str(other / "model.pt"),
                  "--out", str(tmp_path / "o")]) == 1
     _one_line_error(capsys, "not trained on windshield streaks")
+
+
+def test_damaged_raw_gives_exactly_one_line_on_stderr(tmp_path):
+    """LibRaw's own C-level message is silenced: the user sees hdrcam's line only."""
+    import subprocess
+    import sys
+
+    from hdrcam.capture.backends import open_camera
+    from hdrcam.capture.bracket import BracketCapture, BracketPlan
+    from hdrcam.capture.scene import load_scene
+    from hdrcam.optics.analytic import dirac
+    from hdrcam.profiles import load_profile
+
+    profile = load_profile("simulated")
+    camera, _ = open_camera("sim", profile, scene=load_scene("night", 64, 96), psf=dirac(9))
+    with camera:
+        bracket = BracketCapture(camera, profile.camera, tmp_path / "b", backend="sim", profile="simulated",
+                                 show_progress=False).shoot(BracketPlan(shortest_s=1 / 250, stops=1, ev_step=3.0,
+                                                                        iso=100.0))
+    frame = tmp_path / "b" / bracket.frames[0].file
+    (tmp_path / "cut.dng").write_bytes(frame.read_bytes()[:5000])
+    result = subprocess.run([sys.executable, "-m", "hdrcam", "reconstruct", str(tmp_path / "cut.dng"), "--out",
+                             str(tmp_path / "out")], capture_output=True, text=True)
+    assert result.returncode == 1 and result.stderr.count("\n") == 1 and "cannot read as RAW" in result.stderr
+    good = subprocess.run([sys.executable, "-m", "hdrcam", "reconstruct", str(frame), "--out", str(tmp_path / "ok")],
+                          capture_output=True, text=True)
+    assert good.returncode == 0 and (tmp_path / "ok" / f"{frame.stem}.exr").is_file()
