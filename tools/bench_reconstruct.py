@@ -1,13 +1,17 @@
 """Speed-accuracy of `hdrcam reconstruct`: preset x frame size x scene-adaptive compute on/off.
 
-Test frames: procedural night scenes (about 12 light sources per megapixel, seeds 0..N-1) scaled so 1.5 %
-of the pixels clip, captured through the checkpoint's PSF with the simulated sensor's noise. For each
+Test frames: procedural night scenes (seeds 0..N-1) scaled so 1.5 % of the pixels clip, captured through
+the checkpoint's PSF with the simulated sensor's noise. Layout ``uniform``: about 12 light sources per
+megapixel anywhere (the 1.5 % then includes bright background, so clipping is everywhere); ``clustered``:
+a dark frame (background at 1/20) whose lights, 200 per megapixel of their block, fill a block of 1/4 x 1/2
+of the frame (a lit street in a dark scene). For each
 configuration: median wall time of the reconstruction (tiles of 256 + 2 x 64 px), peak RSS of the process
 that ran it (one subprocess per configuration), windows run, and linear PSNR (peak 2^8) against the truth;
 also the LDR frame's PSNR. Presets other than the checkpoint's have no trained weights here: their rows
 give cost only. Writes a markdown table and a Pareto plot (PSNR against time).
 Usage: python tools/bench_reconstruct.py [--sizes 512,1024,4000x6000] [--presets fast,lite] [--frames 3]
-       [--out runs/bench-reconstruct]
+       [--layout clustered|uniform]
+       [--out tools/results/reconstruct]
 """
 
 from __future__ import annotations
@@ -41,10 +45,19 @@ from hdrcam.train.optical_capture import capture_scene
 SOURCES_PER_MEGAPIXEL = 12
 
 
-def test_frame(height: int, width: int, seed: int, psf: np.ndarray, profile) -> tuple[np.ndarray, np.ndarray]:
+def test_frame(height: int, width: int, seed: int, psf: np.ndarray, profile, layout: str = "uniform"
+               ) -> tuple[np.ndarray, np.ndarray]:
     margin = psf.shape[-1] // 2
-    sources = max(4, round(SOURCES_PER_MEGAPIXEL * height * width / 1e6))
-    scene = night_scene(height + 2 * margin, width + 2 * margin, seed=seed, sources=sources)
+    if layout == "uniform":
+        sources = max(4, round(SOURCES_PER_MEGAPIXEL * height * width / 1e6))
+        scene = night_scene(height + 2 * margin, width + 2 * margin, seed=seed, sources=sources)
+    else:
+        scene = night_scene(height + 2 * margin, width + 2 * margin, seed=seed, sources=0) / 20.0
+        block_height, block_width = height // 2, width // 4
+        lights = night_scene(block_height, block_width, seed=seed + 1,
+                             sources=max(4, round(200 * block_height * block_width / 1e6)))
+        top, left = margin + height // 4, margin + width // 8
+        scene[top:top + block_height, left:left + block_width] = lights
     scene = scale_to_clipped_fraction(scene, 0.015, scale_region=scene[margin:-margin, margin:-margin])
     return capture_scene(scene, psf, profile, seed), scene[margin:-margin, margin:-margin]
 
@@ -61,7 +74,7 @@ def single(arguments) -> None:
     height, width = arguments.height, arguments.width
     times, psnrs, ldr_psnrs, runs = [], [], [], []
     for seed in range(arguments.frames):
-        frame, truth = test_frame(height, width, seed, model.psf, profile)
+        frame, truth = test_frame(height, width, seed, model.psf, profile, arguments.layout)
         started = time.perf_counter()
         hdr, report = reconstruct_frame(network, frame, psf_radius_px=model.psf.shape[-1] // 2,
                                         adaptive=arguments.adaptive)
@@ -79,8 +92,9 @@ def main() -> None:
     parser.add_argument("--sizes", default="512,1024,4000x6000")
     parser.add_argument("--presets", default="fast,lite")
     parser.add_argument("--frames", type=int, default=3)
+    parser.add_argument("--layout", choices=("uniform", "clustered"), default="clustered")
     parser.add_argument("--checkpoint", default=None)
-    parser.add_argument("--out", type=Path, default=Path("runs/bench-reconstruct"))
+    parser.add_argument("--out", type=Path, default=Path("tools/results/reconstruct"))
     parser.add_argument("--single", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--preset", default="fast", help=argparse.SUPPRESS)
     parser.add_argument("--height", type=int, default=512, help=argparse.SUPPRESS)
@@ -92,7 +106,7 @@ def main() -> None:
     trained = load_model(arguments.checkpoint).preset
     arguments.out.mkdir(parents=True, exist_ok=True)
     lines = [f"Machine: {platform.processor() or platform.machine()}, {torch.get_num_threads()} threads, CPU, "
-             f"float32. Frames: {arguments.frames} per size (1 at 24 MP).", "",
+             f"float32. Layout {arguments.layout}; {arguments.frames} frames per size (1 at 24 MP).", "",
              "| preset | size | adaptive | median s | peak RSS MB | windows run | PSNR (dB) | LDR PSNR (dB) |",
              "|---|---|---|---|---|---|---|---|"]
     points: dict[str, tuple[list, list]] = {}
@@ -102,7 +116,8 @@ def main() -> None:
             frames = 1 if height * width > 4e6 else arguments.frames
             for adaptive in (1, 0):
                 command = [sys.executable, __file__, "--single", "--preset", name, "--height", str(height),
-                           "--width", str(width), "--adaptive", str(adaptive), "--frames", str(frames)]
+                           "--width", str(width), "--adaptive", str(adaptive), "--frames", str(frames),
+                           "--layout", arguments.layout]
                 if arguments.checkpoint:
                     command += ["--checkpoint", arguments.checkpoint]
                 result = json.loads(subprocess.run(command, check=True, capture_output=True,

@@ -112,7 +112,7 @@ class HighlightUNet(nn.Module):
 
 
 class FusionNet(nn.Module):
-    """f_F: (I_U, I_S) -> I_hat, the HDR estimate (N, 3, H, W), >= 0."""
+    """f_F: (I_U, I_S) -> I_hat, the HDR estimate (N, 3, H, W), in [0, 2^8]."""
 
     def __init__(self, preset: NetworkPreset):
         super().__init__()
@@ -129,4 +129,4 @@ class FusionNet(nn.Module):
         features = torch.cat([self.unsaturated_branch(torch.log(unsaturated.clamp(min=_LOG_FLOOR))),
                               self.highlight_branch(torch.log(highlight))], dim=1)
         correction = self.exit(self.joint(features)).clamp(-math.log(HIGHLIGHT_PEAK), math.log(HIGHLIGHT_PEAK))
-        return composite.clamp(min=0.0) * torch.exp(correction)
+        return (composite.clamp(min=0.0) * torch.exp(correction)).clamp(max=HIGHLIGHT_PEAK)
