@@ -18,9 +18,8 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.hdr.demosaic import demosaic_bilinear
 from hdrcam.io.exr import read_exr
-from hdrcam.io.raw import read_raw
+from hdrcam.io.raw import RAW_SUFFIXES, read_raw
 
-RAW_SUFFIXES = (".arw", ".dng", ".nef", ".cr2", ".cr3", ".raf", ".orf", ".rw2")
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 

@@ -125,7 +125,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         rng.bit_generator.state = saved["rng"]
         noise.set_state(saved["noise_generator"])
         start = int(saved["step"])
-    trained = DistributedDataParallelOrNot(model, world, device)
+    trained = _maybe_distributed(model, world, device)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=True)
@@ -169,7 +169,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     return last
 
 
-def DistributedDataParallelOrNot(model: nn.Module, world: int, device: torch.device) -> nn.Module:
+def _maybe_distributed(model: nn.Module, world: int, device: torch.device) -> nn.Module:
     """The model itself on one process; wrapped in DistributedDataParallel under torchrun."""
     if world == 1:
         return model
