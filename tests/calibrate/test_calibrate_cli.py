@@ -36,10 +36,9 @@ def pinhole_bracket(tmp_path_factory):
 
 
 def test_calibrated_psf_matches_the_true_psf(pinhole_bracket, tmp_path, capsys):
-    """Acceptance (issue 4): 80 sources through the simulated profile's DOE, with shot and read noise, hot
-    pixels, mislabelled exposures and random sub-pixel offsets. Measured L1 per channel R/G/B over seeds
-    3, 4, 5: 1.9/1.1/1.3 %, 1.8/0.8/2.2 %, 1.4/1.5/3.5 % - blue, whose PSF keeps 76 % of its energy in one
-    pixel sampled at a quarter of the sites, misses the 2 % goal on two of three seeds."""
+    """Acceptance (issue 4): a pinhole array (117 sources used) through the simulated profile's DOE, with shot
+    and read noise, hot pixels, mislabelled exposures and random sub-pixel offsets. Measured L1 per channel
+    R/G/B over seeds 3, 4, 5, 6: 1.2/1.0/1.6 %, 0.7/0.8/0.9 %, 1.1/0.8/1.0 %, 1.1/0.8/1.3 %."""
     out = tmp_path / "record"
     assert main(["calibrate", "psf", str(pinhole_bracket), "--darks", str(pinhole_bracket / "darks"),
                  "--out", str(out), "--profile", "simulated"]) == 0
@@ -48,10 +47,10 @@ def test_calibrated_psf_matches_the_true_psf(pinhole_bracket, tmp_path, capsys):
     measured = read_exr(out / "psf.exr").rgb().transpose(2, 0, 1).astype(np.float64)
     np.testing.assert_allclose(measured.sum(axis=(1, 2)), 1.0, rtol=1e-5)
     l1 = np.abs(measured - truth).sum(axis=(1, 2))
-    assert l1[0] < 0.02 and l1[1] < 0.02 and l1[2] < 0.04, l1
+    assert (l1 < 0.02).all(), l1
 
     record = json.loads((out / "record.json").read_text())
-    assert record["sources_used"] >= 75 and record["hot_pixels"] > 0
+    assert record["sources_used"] >= 110 and record["hot_pixels"] > 0
     assert len(record["inputs"]["frames"]) == 5 and all(len(f["sha256"]) == 64 for f in record["inputs"]["frames"])
     # the PSF's centroid: the fitted positions against the true ones (offset by the true PSF's own centroid)
     offset = np.array(green_centroid_offset(simulation_psf(profile, "doe").astype(np.float64)))
@@ -65,7 +64,7 @@ def test_calibrated_psf_matches_the_true_psf(pinhole_bracket, tmp_path, capsys):
     assert np.hypot(*errors.mean(axis=0)) < 0.05  # the common shift applied to the PSF
     assert np.median(np.hypot(*errors.T)) < 0.05
     assert (out / "psf.png").stat().st_size > 1000
-    assert "80 point sources" in capsys.readouterr().out
+    assert f"{record['sources_used']} point sources" in capsys.readouterr().out
 
 
 def test_energy_fraction_crops_and_existing_record_is_kept(pinhole_bracket, tmp_path, capsys):
