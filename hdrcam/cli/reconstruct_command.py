@@ -28,6 +28,9 @@ def register(commands) -> None:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--no-adaptive", dest="adaptive", action="store_false",
                         help="run the network on every tile, also far from any clipped pixel")
+    parser.add_argument("--no-streak-fit", dest="streak_fit", action="store_false",
+                        help="keep the network's highlight amplitudes instead of fitting each clipped blob's "
+                             "brightness to the streaks the frame recorded")
     parser.add_argument("--tile", type=positive_int, default=256, metavar="PX", help="tile core size (default 256)")
     parser.add_argument("--halo", type=positive_int, default=64, metavar="PX", help="tile overlap per side")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
@@ -52,7 +55,8 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.export import OnnxNetwork
     from hdrcam.progress import Progress
     from hdrcam.recon.streaks import check_streaks
-    from hdrcam.recon.tiling import reconstruct_frame, window_count
+    from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
+    from hdrcam.recon.tiling import clipped_mask, reconstruct_frame, window_count
     from hdrcam.train.checkpoint import load_model
 
     if (arguments.tile + 2 * arguments.halo) % 16:
@@ -69,10 +73,10 @@ def run(arguments: argparse.Namespace) -> int:
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
     if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
         network = OnnxNetwork(arguments.checkpoint)
-        network_psf, profile_name, source = network.psf, network.metadata["hdrcam_profile"], arguments.checkpoint
+        network_psf, profile_name, checkpoint = network.psf, network.metadata["hdrcam_profile"], arguments.checkpoint
     else:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
-        network, network_psf, profile_name, source = model.network, model.psf, model.profile, model.source
+        network, network_psf, profile_name, checkpoint = model.network, model.psf, model.profile, model.source
     psf = load_psf(arguments.psf) if arguments.psf else network_psf
     core_radius = load_profile(profile_name).simulation.energy_centre_radius_px
     frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
@@ -82,11 +86,14 @@ def run(arguments: argparse.Namespace) -> int:
         hdr, report = reconstruct_frame(network, frame, psf_radius_px=psf.shape[-1] // 2,
                                         adaptive=arguments.adaptive, core_px=arguments.tile,
                                         halo_px=arguments.halo, device=device, dtype=dtype, progress=progress)
+        fit = None
+        if arguments.streak_fit:
+            hdr, fit = refine_highlight_amplitudes(frame, hdr, psf, clipped_mask(frame))
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():
             warnings.warn(f"{source.name}: {streaks.warning()}")
         exr_path, png_path = output_paths(arguments.out, source)
-        attributes = {"source": str(source), "checkpoint": str(source), "units": "relative radiance, 1.0 = "
+        attributes = {"source": str(source), "checkpoint": str(checkpoint), "units": "relative radiance, 1.0 = "
                       "sensor white at the capture's exposure", "colour": "camera RGB",
                       "windows_run": report.windows_run, "windows": report.windows,
                       "clipped_streak_pixels": streaks.clipped_streak_pixels}
@@ -96,5 +103,6 @@ def run(arguments: argparse.Namespace) -> int:
         write_png(png_path, tonemap_rgb(hdr), overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
                           "size": list(frame.shape[:2]), "seconds": round(time.perf_counter() - started, 2),
-                          "work": report.summary(), "clipped_streak_pixels": streaks.clipped_streak_pixels}))
+                          "work": report.summary(), "streak_fit": fit.summary() if fit else "off",
+                          "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     return 0

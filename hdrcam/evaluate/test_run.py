@@ -6,7 +6,10 @@ paper's test protocol). Each scene is captured with the same noise seed for ever
 - ``hdrcnn-blend``: HDR-CNN-style blending (Eilertsen et al.) of the frame with that checkpoint's
   reconstruction, alpha ramping 0 -> 1 as the frame's brightest channel goes 0.95 -> 1: the network is
   trusted only where the frame clipped;
-- one row per checkpoint (its label): the full reconstruction.
+- one row per checkpoint (its label): the full reconstruction, the network's output with each clipped blob's
+  brightness fitted to the recorded streaks (:mod:`hdrcam.recon.highlight_refinement`), as ``reconstruct``
+  writes it;
+- ``LABEL-network``: the network's output alone, without that fit.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from hdrcam.data.saturation import clipped_fraction
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
+from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
+from hdrcam.recon.tiling import clipped_mask
 from hdrcam.train.checkpoint import TrainedModel
 from hdrcam.train.optical_capture import OpticalCapture
 
@@ -57,6 +62,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs."""
     captures = {label: OpticalCapture(load_profile(model.profile), psf=model.psf if psf is None else psf)
                 for label, model in models.items()}
+    capture_psfs = {label: capture.fixed.cpu().numpy() for label, capture in captures.items()}
     margin = max(capture.margin_px for capture in captures.values())
     first = next(iter(models))
     rows, shown = [], []
@@ -71,11 +77,15 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             local = radiance[..., crop:radiance.shape[-2] - crop, crop:radiance.shape[-1] - crop]
             with torch.no_grad():
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
-                reconstruction = _to_image(model.network(ldr).hdr)
+                network_output = _to_image(model.network(ldr).hdr)
+            frame = _to_image(ldr)
+            reconstruction, _ = refine_highlight_amplitudes(frame, network_output, capture_psfs[label],
+                                                            clipped_mask(frame))
             if label == first:
-                outputs["ldr"] = _to_image(ldr)
-                outputs["hdrcnn-blend"] = hdrcnn_blend(outputs["ldr"], reconstruction)
+                outputs["ldr"] = frame
+                outputs["hdrcnn-blend"] = hdrcnn_blend(frame, reconstruction)
             outputs[label] = reconstruction
+            outputs[f"{label}-network"] = network_output
         rows += [ScoredImage(name, method, all_metrics(image, truth), fraction) for method, image in outputs.items()]
         if index < examples:
             shown.append(Example(name, truth, outputs))

@@ -39,7 +39,7 @@ def test_design_evaluate_and_finetune(tmp_path, capsys):
     assert main(["evaluate", "--checkpoint", f"mine={run / 'model.pt'}", "--size", "32", "--count", "2",
                  "--out", str(evaluation)]) == 0
     rows = list(csv.DictReader((evaluation / "metrics.csv").open()))
-    assert [row["method"] for row in rows] == ["ldr", "hdrcnn-blend", "mine"] * 2
+    assert [row["method"] for row in rows] == ["ldr", "hdrcnn-blend", "mine", "mine-network"] * 2
     assert all(np.isfinite(float(row[k])) for row in rows for k in ("psnr_linear", "pu21_psnr", "psnr_mu"))
     assert "| mine |" in (evaluation / "summary.md").read_text() and (evaluation / "examples.png").is_file()
     capsys.readouterr()
