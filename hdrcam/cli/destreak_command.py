@@ -3,7 +3,8 @@
 Wiper-scratched windshields smear every light into a thin streak through it, like a 2-point star PSF.
 A network trained behind random 2-point stars (rotations in (-8, -2.5) U (2.5, 8) degrees; ``hdrcam
 design --psf windshield``) splits a frame into the streak-free image I_U and the streaks; this command
-writes I_U. The default network is the shipped one (hdrcam/checkpoints/windshield-fast.pt).
+writes I_U within the streaks' reach of each clipped light and keeps the frame elsewhere
+(:mod:`hdrcam.recon.destreak`). The default network is the shipped one (hdrcam/checkpoints/windshield-fast.pt).
 """
 
 from __future__ import annotations
@@ -25,29 +26,12 @@ def register(commands) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, metavar="INPUT", help="RAW, EXR or 16-bit TIFF/PNG frames")
     parser.add_argument("--checkpoint", type=Path, default=SHIPPED_WINDSHIELD)
     parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--no-gate", dest="gate", action="store_false",
+                        help="use the network's output everywhere, not only within the streaks' reach of a "
+                             "clipped light")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
-
-
-class _UnsaturatedOnly:
-    """The splitting stage of a network, presented as a whole network whose output is I_U."""
-
-    def __init__(self, network):
-        self.network = network
-
-    def to(self, device=None, dtype=None):
-        self.network.to(device=device, dtype=dtype)
-        return self
-
-    def eval(self):
-        self.network.eval()
-        return self
-
-    def __call__(self, ldr):
-        output = self.network(ldr, highlights=False)
-        output.hdr = output.unsaturated.clamp(0.0, 1.0)
-        return output
 
 
 def run(arguments: argparse.Namespace) -> int:
@@ -55,7 +39,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.ldr_frame import read_ldr_frame
     from hdrcam.io.png import write_png
     from hdrcam.preview import tonemap_rgb
-    from hdrcam.recon.tiling import reconstruct_frame
+    from hdrcam.recon.destreak import destreak_frame
     from hdrcam.train.checkpoint import load_model, read_checkpoint
 
     if read_checkpoint(arguments.checkpoint)["config"].get("psf") != "windshield":
@@ -68,11 +52,12 @@ def run(arguments: argparse.Namespace) -> int:
     frames = [read_ldr_frame(source) for source in arguments.inputs]
     for source, frame, (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
-        clean, _ = reconstruct_frame(_UnsaturatedOnly(model.network), frame, psf_radius_px=model.psf.shape[-1] // 2,
-                                     adaptive=False, device=compute_device(arguments.device))
+        clean, report = destreak_frame(model.network, frame, psf_radius_px=model.psf.shape[-1] // 2,
+                                       gate=arguments.gate, device=compute_device(arguments.device))
         write_exr(exr_path, clean, channel_names=("R", "G", "B"),
                   attributes={"source": str(source), "checkpoint": str(model.source)}, overwrite=arguments.overwrite)
         write_png(png_path, tonemap_rgb(clean), overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path),
+                          "streak_zone_fraction": round(report.streak_zone_fraction, 4),
                           "seconds": round(time.perf_counter() - started, 2)}))
     return 0
