@@ -28,6 +28,11 @@ from hdrcam.train.optical_capture import capture_scene
 PSF_SIZE_PX = 63
 
 
+def _name(path: Path) -> str:
+    """A checkpoint's label: its run folder for a run's model.pt, else its file name."""
+    return path.parent.name if path.name == "model.pt" else path.name
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("checkpoints", nargs="+", type=Path)
@@ -49,7 +54,7 @@ def main() -> None:
         for path, model in models.items():
             for gate in (True, False):
                 clean, report = destreak_frame(model.network, streaked, psf_radius_px=margin, gate=gate)
-                label = f"{path.name} ({'gated' if gate else 'everywhere'})"
+                label = f"{_name(path)} ({'gated' if gate else 'everywhere'})"
                 scores.setdefault(label, []).append(psnr(clean, reference, 1.0))
                 if gate:
                     zones.append(report.streak_zone_fraction)
