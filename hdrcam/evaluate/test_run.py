@@ -60,9 +60,9 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3,
                     progress=None) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs."""
-    captures = {label: OpticalCapture(load_profile(model.profile), psf=model.psf if psf is None else psf)
+    capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
+    captures = {label: OpticalCapture(load_profile(model.profile), psf=capture_psfs[label])
                 for label, model in models.items()}
-    capture_psfs = {label: capture.fixed.cpu().numpy() for label, capture in captures.items()}
     margin = max(capture.margin_px for capture in captures.values())
     first = next(iter(models))
     rows, shown = [], []
