@@ -5,7 +5,7 @@ the checkpoint's PSF with the simulated sensor's noise. Layout ``uniform``: abou
 megapixel anywhere (the 1.5 % then includes bright background, so clipping is everywhere); ``clustered``:
 a dark frame (background at 1/20) whose lights, 200 per megapixel of their block, fill a block of 1/4 x 1/2
 of the frame (a lit street in a dark scene). For each
-configuration: median wall time of the reconstruction (tiles of 256 + 2 x 64 px), peak RSS of the process
+configuration: median wall time of the reconstruction (the default tiles: cores of at most 512 px, 32 px halos), peak RSS of the process
 that ran it (one subprocess per configuration), windows run, and linear PSNR (peak 2^8) against the truth;
 also the LDR frame's PSNR. Presets other than the checkpoint's have no trained weights here: their rows
 give cost only. Writes a markdown table and a Pareto plot (PSNR against time).
@@ -81,7 +81,7 @@ def single(arguments) -> None:
         times.append(time.perf_counter() - started)
         psnrs.append(psnr_linear(hdr, truth))
         ldr_psnrs.append(psnr_linear(frame, truth))
-        runs.append(f"{report.windows_run}/{report.windows}")
+        runs.append(f"{report.windows_run} ({100 * report.network_pixels / report.full_frame_network_pixels:.0f} %)")
     print(json.dumps({"seconds": statistics.median(times), "psnr": float(np.mean(psnrs)),
                       "ldr_psnr": float(np.mean(ldr_psnrs)), "windows": runs,
                       "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
@@ -107,7 +107,7 @@ def main() -> None:
     arguments.out.mkdir(parents=True, exist_ok=True)
     lines = [f"Machine: {platform.processor() or platform.machine()}, {torch.get_num_threads()} threads, CPU, "
              f"float32. Layout {arguments.layout}; {arguments.frames} frames per size (1 at 24 MP).", "",
-             "| preset | size | adaptive | median s | peak RSS MB | windows run | PSNR (dB) | LDR PSNR (dB) |",
+             "| preset | size | adaptive | median s | peak RSS MB | windows run (share of full-frame network px) | PSNR (dB) | LDR PSNR (dB) |",
              "|---|---|---|---|---|---|---|---|"]
     points: dict[str, tuple[list, list]] = {}
     for name in arguments.presets.split(","):

@@ -14,6 +14,7 @@ import torch
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_writable
+from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 
 def register(commands) -> None:
@@ -31,8 +32,10 @@ def register(commands) -> None:
     parser.add_argument("--no-streak-fit", dest="streak_fit", action="store_false",
                         help="keep the network's highlight amplitudes instead of fitting each clipped blob's "
                              "brightness to the streaks the frame recorded")
-    parser.add_argument("--tile", type=positive_int, default=256, metavar="PX", help="tile core size (default 256)")
-    parser.add_argument("--halo", type=positive_int, default=64, metavar="PX", help="tile overlap per side")
+    parser.add_argument("--tile", type=positive_int, default=DEFAULT_CORE_PX, metavar="PX",
+                        help=f"largest tile core (default {DEFAULT_CORE_PX}; bounds memory)")
+    parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
+                        help=f"tile context per side (default {DEFAULT_HALO_PX})")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--precision", default="float32", choices=("float32", "float16", "bfloat16"),
                         help="network precision; half precisions on CUDA only (they are slow on CPUs)")
@@ -56,7 +59,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.progress import Progress
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
-    from hdrcam.recon.tiling import clipped_mask, reconstruct_frame, window_count
+    from hdrcam.recon.tiling import clipped_mask, plan_regions, reconstruct_frame
     from hdrcam.train.checkpoint import load_model
 
     if (arguments.tile + 2 * arguments.halo) % 16:
@@ -80,7 +83,9 @@ def run(arguments: argparse.Namespace) -> int:
     psf = load_psf(arguments.psf) if arguments.psf else network_psf
     core_radius = load_profile(profile_name).simulation.energy_centre_radius_px
     frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
-    progress = Progress(sum(window_count(*f.shape[:2], arguments.tile) for f in frames), "reconstruct")
+    plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
+                          core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
+    progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
     for source, frame in zip(arguments.inputs, frames):
         started = time.perf_counter()
         hdr, report = reconstruct_frame(network, frame, psf_radius_px=psf.shape[-1] // 2,

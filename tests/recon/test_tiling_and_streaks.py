@@ -8,7 +8,9 @@ from torch import nn
 from hdrcam.optics.analytic import star
 from hdrcam.recon.network import Reconstruction
 from hdrcam.recon.streaks import check_streaks
-from hdrcam.recon.tiling import reconstruct_frame
+import cv2
+
+from hdrcam.recon.tiling import _reflected, plan_regions, reconstruct_frame
 from hdrcam.sensor import fft_convolve
 
 
@@ -47,6 +49,41 @@ def test_adaptive_runs_only_the_tiles_within_the_psf_reach_of_a_clipped_pixel():
     frame[:] = 1.0  # all clipped: every window runs, output finite
     hdr, report = reconstruct_frame(PointwiseNet(), frame, psf_radius_px=10, core_px=64, halo_px=32)
     assert report.windows_run == 16 and np.isfinite(hdr).all()
+
+
+def test_regions_follow_the_clipped_patches_and_merge_when_their_halos_meet():
+    frame = np.full((400, 900, 3), 0.2, np.float32)
+    frame[100, 100] = frame[300, 800] = 1.0
+    far = plan_regions(frame, psf_radius_px=10, core_px=64, halo_px=16)
+    assert len(far) == 2
+    reach = 10 + 8  # PSF radius + the cross-fade (blend = min(halo, core / 2) / 2)
+    assert (far[0].top, far[0].left, far[0].height, far[0].width) == (100 - reach, 100 - reach, 2 * reach + 1,
+                                                                      2 * reach + 1)
+    frame[100, 150] = 1.0  # 50 px from the first: their windows' halos overlap, one region covers both
+    near = plan_regions(frame, psf_radius_px=10, core_px=64, halo_px=16)
+    assert len(near) == 2 and near[0].width == 50 + 2 * reach + 1
+    assert plan_regions(frame * 0.5, psf_radius_px=10) == []
+    assert len(plan_regions(frame * 0.5, psf_radius_px=10, adaptive=False)) == 1
+
+
+def test_adaptive_output_is_the_network_near_clipped_pixels_and_the_frame_beyond_reach():
+    frame = np.random.default_rng(2).random((300, 300, 3)).astype(np.float32) * 0.5
+    frame[150, 150] = 1.0
+    hdr, report = reconstruct_frame(PointwiseNet(), frame, psf_radius_px=10, core_px=64, halo_px=16)
+    network = frame * 3.0 + frame ** 2
+    yy, xx = np.mgrid[:300, :300]
+    within = np.hypot(yy - 150, xx - 150) <= 10
+    assert np.allclose(hdr[within], network[within], atol=1e-5)
+    beyond = np.maximum(abs(yy - 150), abs(xx - 150)) > 10 + 8
+    assert np.array_equal(hdr[beyond], frame[beyond])
+    assert report.windows_run == 1 and report.network_pixels < report.full_frame_network_pixels / 10
+
+
+@pytest.mark.parametrize("length", [1, 2, 7])
+def test_reflected_indices_match_opencv_reflect_101(length):
+    row = np.arange(length, dtype=np.float32)[None]
+    padded = cv2.copyMakeBorder(row, 0, 0, 20, 20, cv2.BORDER_REFLECT_101) if length > 1 else np.zeros((1, 41))
+    assert np.array_equal(_reflected(np.arange(-20, length + 20), length), padded[0].astype(int))
 
 
 def _captured(radiance: float) -> tuple[np.ndarray, np.ndarray]:
