@@ -1,20 +1,34 @@
-"""Highlight amplitudes made consistent with the streaks the frame recorded (inference-time physics).
+"""Highlight brightness made consistent with the streaks the frame recorded (inference-time physics).
 
 The network paints every clipped blob, but only the streaks tell how bright it was: the frame is the scene
 convolved with the PSF (paper Eq. 1), so a blob's light also lands, through the PSF's tails, on pixels that
-did not clip. For each connected clipped blob k, with excess e_k = max(I_hat - 1, 0) on its clipped pixels,
-per channel, this finds the scale s_k that minimises
+did not clip. Each connected clipped blob k gets, per channel, an excess over 1 of a_k phi_k: a mean
+amplitude a_k (relative radiance) times a unit-mean shape phi_k. The amplitudes minimise
 
-    || u (y - P * (b + sum_k s_k e_k)) ||^2 + damping sum_k (s_k - 1)^2
+    || u (y - P * (b + sum_k a_k phi_k)) ||^2 + sum_k lambda_k (a_k - e_k)^2
 
 where y is the frame, u = 1 on unclipped pixels at least GUARD_PX from a clipped one (clipped pixels say
-nothing, and right beside a blob the network's streak-free image b is least reliable), P the PSF and
-b = I_hat - sum_k e_k the reconstruction without its highlights. Damped Jacobi steps with the Hessian's row
-sums (which are positive, so the steps never overshoot) solve it; s_k >= 0, outputs clamped to 2^8.
-A PSF without tails (Dirac) gives no evidence, so its blobs keep s = 1 unless the painted excess spills
-onto unclipped pixels. Damping (relative radiance^2) and guard were chosen by measurement: damping 0.1 of
-0.01, 0.1, 0.3, 1; guard 1 px of 0, 1, 2, 4, 8 (with the 1000-step rank-1 network on 8 procedural test scenes
-+0.7, +0.6, +0.4 dB for guards 0, 1, 2; on the demo frame, whose lamps are dimmer, +5.0, +7.2, +7.5 dB).
+nothing, and right beside a blob the network's streak-free image b is least reliable), P the PSF,
+b = I_hat with its excess over 1 removed from the clipped pixels, and e_k the network's mean excess on the
+blob. lambda_k = DAMPING R_k + FLOOR n_k, with R_k the data term's curvature along a_k and n_k the blob's
+pixel count: the streaks move an amplitude most of the way (1 / (1 + DAMPING) of the least-squares step)
+where they see it clearly, faint streaks move it less, and a PSF without tails (Dirac: R_k = 0) leaves the
+network's amplitude as it is. FLOOR 1e-4 against 1e-6 and 1e-8 (shape cap 2, no flat share): rank-1 32.58
+against 32.10 and 32.07 dB, Dirac 33.53 / 33.53 / 33.55, demo 51.71 / 52.26 / 52.26 (set-up below).
+Damped Jacobi steps with the Hessian's row sums (positive, so steps never overshoot) solve it; a_k >= 0,
+outputs clamped to 2^8.
+
+The shape is the network's, shrunk towards flat: phi_k = SHAPE_FLAT_WEIGHT f_k + (1 - SHAPE_FLAT_WEIGHT) c_k,
+with c_k the network's excess capped at SHAPE_CAP times its blob mean and f_k uniform over the pixels the
+network paints (more than SUPPORT_FRACTION of its blob mean), both normalised to mean 1; a blob the network
+leaves almost unpainted is filled flat. The network's blob shapes are its least reliable output (sharp peaks
+where the truth is smooth), and linear PSNR punishes a misplaced peak far more than a flat fill; the flat
+share stays off the pixels the network judged to be the PSF's halo around a blob. Chosen by measurement
+(tools/results/streak-fit.md: 8 procedural test scenes with the 2000-step ablation networks, and the demo
+frame; linear / PU21 PSNR in dB for the network alone, the capped shape alone, this shape): rank-1
+31.74/30.14, 32.58/29.41, 32.53/29.27; Dirac 33.11/34.36, 33.53/34.45, 34.43/34.56; dual-peak
+33.27/34.67, 33.97/34.82, 34.79/34.80; demo 44.91/30.87, 51.71/31.05, 52.66/31.07 (the captured frame:
+52.37/32.50).
 
 Only what the frame needs is modelled: blobs whose PSF footprints overlap form a cluster, and each cluster
 is solved in its own crop (the cluster grown by the PSF radius), so memory and time follow the highlights,
@@ -33,16 +47,21 @@ import torch
 from hdrcam.recon.stages import HIGHLIGHT_PEAK
 from hdrcam.sensor import fft_convolve
 
-DEFAULT_ITERATIONS = 5
-DEFAULT_DAMPING = 0.1
+DEFAULT_ITERATIONS = 10
+DEFAULT_DAMPING = 0.1  # relative to the data term's curvature
+FLOOR = 1e-4  # per blob pixel, (relative frame value / relative radiance)^2: keeps tail-less PSFs at the guess
 GUARD_PX = 1  # unclipped pixels this close to a clipped one are left out of the fit (see the module docstring)
+SHAPE_CAP = 2.0  # the network's shape is capped at this multiple of its blob mean
+SHAPE_FLAT_WEIGHT = 0.5
+PAINTED_MIN = 0.05  # a blob whose mean painted excess is below this (relative radiance) gets a flat shape
+SUPPORT_FRACTION = 0.05  # of its blob mean: where the network paints less, the flat share puts nothing
 
 
 @dataclasses.dataclass
 class RefinementReport:
     blobs: int
     clusters: int
-    median_scale: float  # of the fitted s_k over blobs and channels (1 = the network's amplitudes kept)
+    median_scale: float  # of a_k / e_k over blobs and channels the network painted (1 = its amplitudes kept)
     seconds: float
 
     def summary(self) -> str:
@@ -53,10 +72,10 @@ class RefinementReport:
 
 
 def refine_highlight_amplitudes(ldr: np.ndarray, hdr: np.ndarray, psf: np.ndarray, clipped: np.ndarray, *,
-                                iterations: int = DEFAULT_ITERATIONS, damping: float = DEFAULT_DAMPING
-                                ) -> tuple[np.ndarray, RefinementReport]:
+                                iterations: int = DEFAULT_ITERATIONS, damping: float = DEFAULT_DAMPING,
+                                floor: float = FLOOR) -> tuple[np.ndarray, RefinementReport]:
     """H x W x 3 frame and its HDR estimate (relative radiance), the (3, k, k) unit-sum PSF the frame was taken
-    through and the H x W clipped mask -> the HDR estimate with each clipped blob's excess rescaled."""
+    through and the H x W clipped mask -> the HDR estimate with each clipped blob's excess refitted."""
     started = time.perf_counter()
     radius = psf.shape[-1] // 2
     refined = np.array(hdr, np.float32, copy=True)
@@ -69,36 +88,61 @@ def refine_highlight_amplitudes(ldr: np.ndarray, hdr: np.ndarray, psf: np.ndarra
     scales = []
     for left, top, width, height, _ in boxes[1:]:
         crop = (slice(top, top + height), slice(left, left + width))
-        patch, patch_scales = _refine_crop(ldr[crop], hdr[crop], clipped[crop], kernel, iterations, damping)
+        patch, patch_scales = _refine_crop(ldr[crop], hdr[crop], clipped[crop], kernel, iterations, damping, floor)
         refined[crop] = np.where(clipped[crop][..., None], patch, refined[crop])
         scales.append(patch_scales)
     all_scales = np.concatenate(scales)
-    return refined, RefinementReport(blob_count - 1, cluster_count - 1, float(np.median(all_scales)),
-                                     time.perf_counter() - started)
+    median = float(np.median(all_scales)) if all_scales.size else 1.0
+    return refined, RefinementReport(blob_count - 1, cluster_count - 1, median, time.perf_counter() - started)
 
 
 def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, kernel: torch.Tensor, iterations: int,
-                 damping: float) -> tuple[np.ndarray, np.ndarray]:
-    """One cluster's crop -> (refined crop, fitted scales of its blobs, flattened over channels)."""
+                 damping: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """One cluster's crop -> (refined crop, a_k / e_k of the blobs and channels the network painted)."""
     blob_count, labels = cv2.connectedComponents(clipped.astype(np.uint8), connectivity=8)
     frame = torch.from_numpy(np.ascontiguousarray(ldr.transpose(2, 0, 1), np.float32))
     estimate = torch.from_numpy(np.ascontiguousarray(hdr.transpose(2, 0, 1), np.float32))
     inside = torch.from_numpy(clipped)
     near = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2))
     unclipped = torch.from_numpy(near == 0).to(torch.float32)
+    index = torch.from_numpy(labels.astype(np.int64)).reshape(-1)
     excess = (estimate - 1.0).clamp(min=0.0) * inside
     base = estimate - excess
+    pixels = torch.zeros(blob_count).index_add_(0, index, torch.ones(index.numel()))
+    painted = _blob_sums(excess, index, blob_count) / pixels.clamp(min=1.0)  # e_k, (3, blobs)
+    painted[:, 0] = 0.0  # label 0: the unclipped background keeps its values
+    shape = _blob_shape(excess, painted, inside, index, blob_count, pixels)
     flipped = torch.flip(kernel, (-2, -1))  # convolving with it correlates with the PSF (the adjoint of P *)
-    index = torch.from_numpy(labels.astype(np.int64)).reshape(-1)
-    row_sums = _blob_sums(excess * fft_convolve(unclipped * fft_convolve(excess, kernel), flipped), index, blob_count)
-    scale = torch.ones(3, blob_count)
+    row_sums = _blob_sums(shape * fft_convolve(unclipped * fft_convolve(shape, kernel), flipped), index, blob_count)
+    prior = damping * row_sums + floor * pixels
+    amplitude = painted.clone()
     for _ in range(iterations):
-        residual = unclipped * (frame - fft_convolve(base + scale[:, index].reshape(excess.shape) * excess, kernel))
-        gradient = _blob_sums(excess * fft_convolve(residual, flipped), index, blob_count)
-        scale = (scale + (gradient - damping * (scale - 1.0)) / (row_sums + damping)).clamp(min=0.0)
-        scale[:, 0] = 1.0  # label 0: the unclipped background keeps its values
-    refined = (base + scale[:, index].reshape(excess.shape) * excess).clamp(max=HIGHLIGHT_PEAK)
-    return refined.numpy().transpose(1, 2, 0), scale[:, 1:].reshape(-1).numpy()
+        model = base + amplitude[:, index].reshape(shape.shape) * shape
+        residual = unclipped * (frame - fft_convolve(model, kernel))
+        gradient = _blob_sums(shape * fft_convolve(residual, flipped), index, blob_count)
+        step = (gradient - prior * (amplitude - painted)) / (row_sums + prior).clamp(min=1e-12)
+        amplitude = (amplitude + step).clamp(min=0.0)
+        amplitude[:, 0] = 0.0
+    refined = (base + amplitude[:, index].reshape(shape.shape) * shape).clamp(max=HIGHLIGHT_PEAK)
+    seen = painted[:, 1:] > PAINTED_MIN
+    return refined.numpy().transpose(1, 2, 0), (amplitude[:, 1:][seen] / painted[:, 1:][seen]).numpy()
+
+
+def _blob_shape(excess: torch.Tensor, painted: torch.Tensor, inside: torch.Tensor, index: torch.Tensor,
+                blob_count: int, pixels: torch.Tensor) -> torch.Tensor:
+    """(3, H, W) unit-mean shape of each blob: the network's, capped and shrunk towards flat (module docstring)."""
+    per_pixel_painted = painted[:, index].reshape(excess.shape)
+    unpainted = per_pixel_painted <= PAINTED_MIN
+    support = (inside & ((excess > SUPPORT_FRACTION * per_pixel_painted) | unpainted)).to(torch.float32)
+    flat = support / _blob_mean(support, index, blob_count, pixels).clamp(min=1e-12)
+    capped = torch.minimum(excess / per_pixel_painted.clamp(min=1e-12), torch.tensor(SHAPE_CAP)) * inside
+    network = capped / _blob_mean(capped, index, blob_count, pixels).clamp(min=1e-12)
+    return SHAPE_FLAT_WEIGHT * flat + (1.0 - SHAPE_FLAT_WEIGHT) * torch.where(unpainted, flat, network)
+
+
+def _blob_mean(values: torch.Tensor, index: torch.Tensor, blob_count: int, pixels: torch.Tensor) -> torch.Tensor:
+    """(3, H, W) -> (3, H, W): each pixel's blob mean of ``values``."""
+    return (_blob_sums(values, index, blob_count) / pixels.clamp(min=1.0))[:, index].reshape(values.shape)
 
 
 def _blob_sums(values: torch.Tensor, index: torch.Tensor, blob_count: int) -> torch.Tensor:
