@@ -1,10 +1,12 @@
 """``hdrcam destreak``: remove windshield streaks (paper Sec. 7) from captured frames.
 
 Wiper-scratched windshields smear every light into a thin streak through it, like a 2-point star PSF.
-A network trained behind random 2-point stars (rotations in (-8, -2.5) U (2.5, 8) degrees; ``hdrcam
-design --psf windshield``) splits a frame into the streak-free image I_U and the streaks; this command
-writes I_U within the streaks' reach of each clipped light and keeps the frame elsewhere
-(:mod:`hdrcam.recon.destreak`). The default network is the shipped one (hdrcam/checkpoints/windshield-fast.pt).
+``--method fit`` (the default) fits the streaks' angle and each clipped light's brightness to the frame and
+subtracts them (:mod:`hdrcam.recon.windshield_fit`). ``--method network`` uses a network trained behind
+random 2-point stars (rotations in (-8, -2.5) U (2.5, 8) degrees; ``hdrcam design --psf windshield``), which
+splits a frame into the streak-free image I_U and the streaks, and writes I_U within the streaks' reach of
+each clipped light (:mod:`hdrcam.recon.destreak`); its default is the shipped network
+(hdrcam/checkpoints/windshield-fast.pt). tools/bench_destreak.py measures both.
 """
 
 from __future__ import annotations
@@ -24,11 +26,13 @@ SHIPPED_WINDSHIELD = Path(__file__).resolve().parent.parent / "checkpoints" / "w
 def register(commands) -> None:
     parser = commands.add_parser("destreak", help="remove windshield streaks from frames", description=__doc__)
     parser.add_argument("inputs", nargs="+", type=Path, metavar="INPUT", help="RAW, EXR or 16-bit TIFF/PNG frames")
-    parser.add_argument("--checkpoint", type=Path, default=SHIPPED_WINDSHIELD)
+    parser.add_argument("--method", choices=("fit", "network"), default="fit",
+                        help="fit: subtract the fitted streaks (default); network: the windshield network's I_U")
+    parser.add_argument("--checkpoint", type=Path, default=SHIPPED_WINDSHIELD, help="with --method network")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--no-gate", dest="gate", action="store_false",
-                        help="use the network's output everywhere, not only within the streaks' reach of a "
-                             "clipped light")
+                        help="with --method network: use the network's output everywhere, not only within "
+                             "the streaks' reach of a clipped light")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -40,24 +44,32 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.png import write_png
     from hdrcam.preview import tonemap_rgb
     from hdrcam.recon.destreak import destreak_frame
+    from hdrcam.recon.windshield_fit import subtract_windshield_streaks
     from hdrcam.train.checkpoint import load_model, read_checkpoint
 
-    if read_checkpoint(arguments.checkpoint)["config"].get("psf") != "windshield":
+    network = arguments.method == "network"
+    if network and read_checkpoint(arguments.checkpoint)["config"].get("psf") != "windshield":
         raise InputError(f"{arguments.checkpoint} was not trained on windshield streaks (design --psf windshield)")
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
     for pair in outputs:
         for path in pair:
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
-    model = load_model(arguments.checkpoint)
+    model = load_model(arguments.checkpoint) if network else None
     frames = [read_ldr_frame(source) for source in arguments.inputs]
     for source, frame, (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
-        clean, report = destreak_frame(model.network, frame, psf_radius_px=model.psf.shape[-1] // 2,
-                                       gate=arguments.gate, device=compute_device(arguments.device))
-        write_exr(exr_path, clean, channel_names=("R", "G", "B"),
-                  attributes={"source": str(source), "checkpoint": str(model.source)}, overwrite=arguments.overwrite)
+        if network:
+            clean, report = destreak_frame(model.network, frame, psf_radius_px=model.psf.shape[-1] // 2,
+                                           gate=arguments.gate, device=compute_device(arguments.device))
+            method = {"checkpoint": str(model.source)}
+            work = {"streak_zone_fraction": round(report.streak_zone_fraction, 4)}
+        else:
+            clean, fit = subtract_windshield_streaks(frame)
+            method = {"method": "streak fit", "angle_deg": "none" if fit.angle_deg is None else f"{fit.angle_deg:.2f}"}
+            work = {"work": fit.summary()}
+        write_exr(exr_path, clean, channel_names=("R", "G", "B"), attributes={"source": str(source), **method},
+                  overwrite=arguments.overwrite)
         write_png(png_path, tonemap_rgb(clean), overwrite=arguments.overwrite)
-        print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path),
-                          "streak_zone_fraction": round(report.streak_zone_fraction, 4),
+        print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path), **work,
                           "seconds": round(time.perf_counter() - started, 2)}))
     return 0

@@ -168,17 +168,28 @@ def test_destreak_trains_on_windshield_streaks_and_removes_them(tmp_path, capsys
     run = tmp_path / "windshield"
     assert main(["design", "--psf", "windshield", *TINY, "--out", str(run)]) == 0
     out = tmp_path / "clean"
-    assert main(["destreak", str(night_frame / "frame.exr"), "--checkpoint", str(run / "model.pt"),
-                 "--out", str(out)]) == 0
+    assert main(["destreak", str(night_frame / "frame.exr"), "--method", "network", "--checkpoint",
+                 str(run / "model.pt"), "--out", str(out)]) == 0
     clean = read_exr(out / "frame.exr").rgb()
     assert clean.shape == (96, 160, 3) and clean.min() >= 0.0 and clean.max() <= 1.0
     capsys.readouterr()
     other = tmp_path / "other"
     assert main(["design", "--psf", "dirac", *TINY, "--out", str(other)]) == 0
     capsys.readouterr()
-    assert main(["destreak", str(night_frame / "frame.exr"), "--checkpoint", str(other / "model.pt"),
-                 "--out", str(tmp_path / "o")]) == 1
+    assert main(["destreak", str(night_frame / "frame.exr"), "--method", "network", "--checkpoint",
+                 str(other / "model.pt"), "--out", str(tmp_path / "o")]) == 1
     _one_line_error(capsys, "not trained on windshield streaks")
+
+
+def test_destreak_by_streak_fit_is_the_default_and_never_overwrites(tmp_path, capsys, night_frame):
+    out = tmp_path / "clean"
+    assert main(["destreak", str(night_frame / "frame.exr"), "--out", str(out)]) == 0
+    printed = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "work" in printed and read_exr(out / "frame.exr").rgb().shape == (96, 160, 3)
+    before = (out / "frame.exr").read_bytes()
+    assert main(["destreak", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
+    _one_line_error(capsys, "already exists")
+    assert (out / "frame.exr").read_bytes() == before
 
 
 def test_damaged_raw_gives_exactly_one_line_on_stderr(tmp_path):

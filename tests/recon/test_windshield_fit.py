@@ -1,0 +1,52 @@
+"""Windshield streaks fitted and subtracted: the angle and the lights' brightness come back from the frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hdrcam.evaluate.metrics import psnr
+from hdrcam.optics.analytic import dirac, two_point_star
+from hdrcam.recon.windshield_fit import directional_background, subtract_windshield_streaks
+from hdrcam.sensor import fft_convolve
+
+
+def capture(radiance: np.ndarray, psf: np.ndarray) -> np.ndarray:
+    """Noise-free frame: the radiance convolved with the PSF, clipped at 1."""
+    blurred = fft_convolve(torch.from_numpy(radiance.transpose(2, 0, 1)).float(), torch.from_numpy(psf).float())
+    return blurred.clamp(0.0, 1.0).numpy().transpose(1, 2, 0)
+
+
+def night(size_px: int = 200) -> np.ndarray:
+    y, x = np.mgrid[:size_px, :size_px]
+    radiance = np.repeat((0.2 + 0.1 * np.sin(x / 9.0) * np.cos(y / 13.0))[..., None], 3, axis=-1)
+    radiance[60:63, 50:53] = 40.0  # two lamps, one of them coloured
+    radiance[130:132, 140:143] = (80.0, 30.0, 10.0)
+    return radiance.astype(np.float32)
+
+
+@pytest.mark.parametrize("angle_deg", [-6.3, 4.1])
+def test_the_streaks_angle_is_found_and_the_streaks_subtracted(angle_deg):
+    scene = night()
+    streaked = capture(scene, two_point_star(63, angle_deg))
+    clean_windshield = capture(scene, dirac(63))
+    cleaned, report = subtract_windshield_streaks(streaked)
+    assert report.blobs == 2 and abs(report.angle_deg - angle_deg) <= 0.25  # the search's finest step
+    before, after = psnr(streaked, clean_windshield, 1.0), psnr(cleaned, clean_windshield, 1.0)
+    assert after > before + 6.0, (before, after)
+    clipped = streaked.max(-1) >= 0.99
+    np.testing.assert_array_equal(cleaned[clipped], streaked[clipped])  # clipped pixels keep their value
+
+
+def test_a_frame_without_clipped_lights_is_returned_unchanged():
+    frame = np.random.default_rng(0).uniform(0.0, 0.9, (64, 80, 3)).astype(np.float32)
+    cleaned, report = subtract_windshield_streaks(frame)
+    assert report.angle_deg is None and report.blobs == 0 and np.array_equal(cleaned, frame)
+    assert "nothing to remove" in report.summary()
+
+
+def test_directional_background_ignores_a_vertical_line_and_keeps_a_flat_field():
+    frame = np.full((32, 40, 3), 0.3, np.float32)
+    frame[:, 20] = 0.9  # a one-pixel streak
+    np.testing.assert_allclose(directional_background(frame), 0.3)
