@@ -29,25 +29,38 @@ def side_by_side(images: list[np.ndarray], height_px: int = 512, gap_px: int = 8
     return np.concatenate(panels[:-1], axis=1)
 
 
+STRIP_ROWS = 256  # previews are computed a strip of rows at a time: memory stays small at 24 MP
+REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def _finite_rgb(strip: np.ndarray) -> np.ndarray:
+    return np.nan_to_num(np.clip(np.asarray(strip, np.float32), 0.0, None), posinf=0.0)
+
+
 def log_average_luminance(hdr_rgb: np.ndarray) -> float:
     """exp(mean(log(Y + 1e-6))) of a linear RGB image (Rec. 709 luminance)."""
-    rgb = np.nan_to_num(np.clip(np.asarray(hdr_rgb, np.float64), 0.0, None), posinf=0.0)
-    return float(np.exp(np.mean(np.log(rgb @ np.array([0.2126, 0.7152, 0.0722]) + 1e-6))))
+    total = 0.0
+    for top in range(0, hdr_rgb.shape[0], STRIP_ROWS):
+        luminance = _finite_rgb(hdr_rgb[top:top + STRIP_ROWS]) @ REC709_LUMINANCE
+        total += float(np.log(luminance.astype(np.float64) + 1e-6).sum())
+    return float(np.exp(total / (hdr_rgb.shape[0] * hdr_rgb.shape[1])))
 
 
 def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | None = None) -> np.ndarray:
     """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``).
 
     ``log_average`` fixes the exposure (e.g. that of a reference image, so several images compare fairly)."""
-    rgb = np.nan_to_num(np.clip(np.asarray(hdr_rgb, np.float64), 0.0, None), posinf=0.0)
-    luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
-    log_average = log_average_luminance(rgb) if log_average is None else log_average
-    scaled = luminance * (key / log_average)
-    compressed = scaled / (1.0 + scaled)
-    display = rgb * (compressed / np.maximum(luminance, 1e-12))[..., None]
-    encoded = np.where(display <= 0.0031308, 12.92 * display, 1.055 * np.power(np.clip(display, 0.0031308, None),
-                                                                                  1 / 2.4) - 0.055)
-    return np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+    log_average = log_average_luminance(hdr_rgb) if log_average is None else log_average
+    preview = np.empty(hdr_rgb.shape[:2] + (3,), np.uint8)
+    for top in range(0, hdr_rgb.shape[0], STRIP_ROWS):
+        rgb = _finite_rgb(hdr_rgb[top:top + STRIP_ROWS])
+        luminance = rgb @ REC709_LUMINANCE
+        scaled = luminance * np.float32(key / log_average)
+        display = rgb * (scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12))[..., None]
+        encoded = np.where(display <= 0.0031308, 12.92 * display,
+                           1.055 * np.power(np.clip(display, 0.0031308, None), 1 / 2.4) - 0.055)
+        preview[top:top + STRIP_ROWS] = np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+    return preview
 
 
 def radial_profile(psf: np.ndarray) -> np.ndarray:
