@@ -50,3 +50,9 @@ def test_directional_background_ignores_a_vertical_line_and_keeps_a_flat_field()
     frame = np.full((32, 40, 3), 0.3, np.float32)
     frame[:, 20] = 0.9  # a one-pixel streak
     np.testing.assert_allclose(directional_background(frame), 0.3)
+
+
+def test_an_all_clipped_frame_gives_nothing_to_fit_and_stays_finite():
+    white = np.ones((48, 64, 3), np.float32)
+    cleaned, report = subtract_windshield_streaks(white)
+    assert report.blobs == 1 and np.array_equal(cleaned, white)
