@@ -30,8 +30,9 @@ def register(commands) -> None:
     parser.add_argument("--no-adaptive", dest="adaptive", action="store_false",
                         help="run the network on every tile, also far from any clipped pixel")
     parser.add_argument("--no-streak-fit", dest="streak_fit", action="store_false",
-                        help="keep the network's highlight amplitudes instead of fitting each clipped blob's "
-                             "brightness to the streaks the frame recorded")
+                        help="write the network's output as it is, instead of fitting each clipped blob's "
+                             "brightness to the streaks the frame recorded and taking unclipped pixels from "
+                             "the frame less the highlights' spill")
     parser.add_argument("--tile", type=positive_int, default=DEFAULT_CORE_PX, metavar="PX",
                         help=f"largest tile core (default {DEFAULT_CORE_PX}; bounds memory)")
     parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
@@ -59,6 +60,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.progress import Progress
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
+    from hdrcam.recon.highlight_spill import subtract_highlight_spill
     from hdrcam.recon.tiling import clipped_mask, plan_regions, reconstruct_frame
     from hdrcam.train.checkpoint import load_model
 
@@ -93,7 +95,9 @@ def run(arguments: argparse.Namespace) -> int:
                                         halo_px=arguments.halo, device=device, dtype=dtype, progress=progress)
         fit = None
         if arguments.streak_fit:
-            hdr, fit = refine_highlight_amplitudes(frame, hdr, psf, clipped_mask(frame))
+            clipped = clipped_mask(frame)
+            hdr, fit = refine_highlight_amplitudes(frame, hdr, psf, clipped)
+            hdr = subtract_highlight_spill(frame, hdr, psf, clipped)
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():
             warnings.warn(f"{source.name}: {streaks.warning()}")

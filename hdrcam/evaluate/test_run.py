@@ -6,9 +6,10 @@ paper's test protocol). Each scene is captured with the same noise seed for ever
 - ``hdrcnn-blend``: HDR-CNN-style blending (Eilertsen et al.) of the frame with that checkpoint's
   reconstruction, alpha ramping 0 -> 1 as the frame's brightest channel goes 0.95 -> 1: the network is
   trusted only where the frame clipped;
-- one row per checkpoint (its label): the full reconstruction, the network's output with each clipped blob's
-  brightness fitted to the recorded streaks (:mod:`hdrcam.recon.highlight_refinement`), as ``reconstruct``
-  writes it;
+- one row per checkpoint (its label): the full reconstruction, as ``reconstruct`` writes it: the network's
+  output with each clipped blob's brightness fitted to the recorded streaks
+  (:mod:`hdrcam.recon.highlight_refinement`) and the unclipped pixels taken from the frame less the
+  highlights' spill (:mod:`hdrcam.recon.highlight_spill`);
 - ``LABEL-network``: the network's output alone, without that fit.
 """
 
@@ -24,6 +25,7 @@ from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
+from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.tiling import clipped_mask
 from hdrcam.train.checkpoint import TrainedModel
 from hdrcam.train.optical_capture import OpticalCapture
@@ -79,8 +81,9 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
                 network_output = _to_image(model.network(ldr).hdr)
             frame = _to_image(ldr)
-            reconstruction, _ = refine_highlight_amplitudes(frame, network_output, capture_psfs[label],
-                                                            clipped_mask(frame))
+            clipped = clipped_mask(frame)
+            fitted, _ = refine_highlight_amplitudes(frame, network_output, capture_psfs[label], clipped)
+            reconstruction = subtract_highlight_spill(frame, fitted, capture_psfs[label], clipped)
             if label == first:
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, reconstruction)
