@@ -45,6 +45,7 @@ import numpy as np
 import torch
 
 from hdrcam.recon.stages import HIGHLIGHT_PEAK
+from hdrcam.recon.tiling import clipped_clusters
 from hdrcam.sensor import fft_convolve
 
 DEFAULT_ITERATIONS = 10
@@ -82,18 +83,16 @@ def refine_highlight_amplitudes(ldr: np.ndarray, hdr: np.ndarray, psf: np.ndarra
     blob_count, _ = cv2.connectedComponents(clipped.astype(np.uint8), connectivity=8)
     if blob_count <= 1:
         return refined, RefinementReport(0, 0, 1.0, time.perf_counter() - started)
-    reach = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1,) * 2))
-    cluster_count, _, boxes, _ = cv2.connectedComponentsWithStats(reach, connectivity=8)
+    clusters = clipped_clusters(clipped, radius)
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     scales = []
-    for left, top, width, height, _ in boxes[1:]:
-        crop = (slice(top, top + height), slice(left, left + width))
+    for crop in clusters:
         patch, patch_scales = _refine_crop(ldr[crop], hdr[crop], clipped[crop], kernel, iterations, damping, floor)
         refined[crop] = np.where(clipped[crop][..., None], patch, refined[crop])
         scales.append(patch_scales)
     all_scales = np.concatenate(scales)
     median = float(np.median(all_scales)) if all_scales.size else 1.0
-    return refined, RefinementReport(blob_count - 1, cluster_count - 1, median, time.perf_counter() - started)
+    return refined, RefinementReport(blob_count - 1, len(clusters), median, time.perf_counter() - started)
 
 
 def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, kernel: torch.Tensor, iterations: int,

@@ -17,10 +17,10 @@ crop (the cluster grown by the PSF radius); beyond that reach the output is the 
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import torch
 
+from hdrcam.recon.tiling import clipped_clusters
 from hdrcam.sensor import fft_convolve
 
 
@@ -30,12 +30,8 @@ def subtract_highlight_spill(frame: np.ndarray, hdr: np.ndarray, psf: np.ndarray
     output = np.array(frame, np.float32, copy=True)
     if not clipped.any():
         return output
-    radius = psf.shape[-1] // 2
-    reach = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1,) * 2))
-    _, _, boxes, _ = cv2.connectedComponentsWithStats(reach, connectivity=8)
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
-    for left, top, width, height, _ in boxes[1:]:
-        crop = (slice(top, top + height), slice(left, left + width))
+    for crop in clipped_clusters(clipped, psf.shape[-1] // 2):
         inside = clipped[crop][..., None]
         highlights = np.where(inside, hdr[crop], 0.0).astype(np.float32).transpose(2, 0, 1)
         spill = fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel).numpy().transpose(1, 2, 0)

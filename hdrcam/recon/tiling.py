@@ -77,6 +77,14 @@ def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:
     return np.maximum.reduce([ldr[..., channel] for channel in range(ldr.shape[-1])]) >= level
 
 
+def clipped_clusters(clipped: np.ndarray, reach_px: int) -> list[tuple[slice, slice]]:
+    """Crops (rows, columns) of the clusters of clipped pixels whose reach_px squares overlap, each grown by
+    reach_px (within the frame): where the light of a cluster's highlights can land through a PSF of that radius."""
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach_px + 1,) * 2)
+    _, _, boxes, _ = cv2.connectedComponentsWithStats(cv2.dilate(clipped.astype(np.uint8), square), connectivity=8)
+    return [(slice(top, top + height), slice(left, left + width)) for left, top, width, height, _ in boxes[1:]]
+
+
 def _ramp(length: int, halo: int, blend: int) -> np.ndarray:
     position = np.arange(length, dtype=np.float32) + 0.5
     rise = np.clip((position - (halo - blend)) / (2 * blend), 0.0, 1.0)

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, two_point_star
-from hdrcam.recon.tiling import clipped_mask
+from hdrcam.recon.tiling import clipped_clusters, clipped_mask
 from hdrcam.sensor import fft_convolve
 
 PSF_SIZE_PX = 63  # the streak length the model allows for (the size the windshield network was trained with)
@@ -106,13 +106,9 @@ def _tails(angle_deg: float) -> torch.Tensor:
 
 
 def _crops(frame: np.ndarray, clipped: np.ndarray) -> list[_Crop]:
-    radius = PSF_SIZE_PX // 2
-    reach = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1,) * 2))
-    _, _, boxes, _ = cv2.connectedComponentsWithStats(reach, connectivity=8)
     near = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2))
     crops = []
-    for left, top, width, height, _ in boxes[1:]:
-        where = (slice(top, top + height), slice(left, left + width))
+    for where in clipped_clusters(clipped, PSF_SIZE_PX // 2):
         blob_count, labels = cv2.connectedComponents(clipped[where].astype(np.uint8), connectivity=8)
         streaks = frame[where] - directional_background(frame[where])
         to_tensor = lambda image: torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
