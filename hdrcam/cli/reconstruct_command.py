@@ -88,11 +88,12 @@ def run(arguments: argparse.Namespace) -> int:
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
-    for source, frame in zip(arguments.inputs, frames):
+    for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
         hdr, report = reconstruct_frame(network, frame, psf_radius_px=psf.shape[-1] // 2,
                                         adaptive=arguments.adaptive, core_px=arguments.tile,
-                                        halo_px=arguments.halo, device=device, dtype=dtype, progress=progress)
+                                        halo_px=arguments.halo, device=device, dtype=dtype, progress=progress,
+                                        regions=plan)
         fit = None
         if arguments.streak_fit:
             clipped = clipped_mask(frame)

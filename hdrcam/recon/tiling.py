@@ -178,15 +178,19 @@ def _fade(length: int, start: int, frame_length: int, blend: int) -> np.ndarray:
 def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius_px: int, adaptive: bool = True,
                       core_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
                       device: torch.device = torch.device("cpu"), dtype: torch.dtype = torch.float32,
-                      progress=None) -> tuple[np.ndarray, TileReport]:
-    """H x W x 3 LDR frame in [0, 1] -> H x W x 3 float32 HDR estimate and what was run."""
+                      progress=None, regions: list[Region] | None = None) -> tuple[np.ndarray, TileReport]:
+    """H x W x 3 LDR frame in [0, 1] -> H x W x 3 float32 HDR estimate and what was run.
+
+    ``regions``: the frame's :func:`plan_regions` with the same settings, when the caller has them already."""
     started = time.perf_counter()
     if (core_px + 2 * halo_px) % MULTIPLE_PX:
         raise ValueError(f"tile core + 2 halo must be a multiple of {MULTIPLE_PX}")
     height, width = ldr.shape[:2]
     frame = np.ascontiguousarray(ldr, np.float32)
     full_frame = _region(0, 0, height, width, core_px, halo_px)
-    regions = plan_regions(frame, psf_radius_px=psf_radius_px, adaptive=adaptive, core_px=core_px, halo_px=halo_px)
+    if regions is None:
+        regions = plan_regions(frame, psf_radius_px=psf_radius_px, adaptive=adaptive, core_px=core_px,
+                               halo_px=halo_px)
     blend = _blend(core_px, halo_px)
     hdr = frame.copy()
     network = network.to(device=device, dtype=dtype).eval() if regions else network
