@@ -59,13 +59,10 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.export import OnnxNetwork
     from hdrcam.progress import Progress
     from hdrcam.recon.streaks import check_streaks
-    from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
-    from hdrcam.recon.highlight_spill import subtract_highlight_spill
-    from hdrcam.recon.tiling import clipped_mask, plan_regions, reconstruct_frame
+    from hdrcam.recon.frame_fit import fit_to_frame
+    from hdrcam.recon.tiling import plan_regions, reconstruct_frame
     from hdrcam.train.checkpoint import load_model
 
-    if (arguments.tile + 2 * arguments.halo) % 16:
-        raise InputError("--tile + 2 --halo must be a multiple of 16")
     device = compute_device(arguments.device)
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     if dtype != torch.float32 and device.type != "cuda":
@@ -96,9 +93,7 @@ def run(arguments: argparse.Namespace) -> int:
                                         regions=plan)
         fit = None
         if arguments.streak_fit:
-            clipped = clipped_mask(frame)
-            hdr, fit = refine_highlight_amplitudes(frame, hdr, psf, clipped)
-            hdr = subtract_highlight_spill(frame, hdr, psf, clipped)
+            hdr, fit = fit_to_frame(frame, hdr, psf)
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():
             warnings.warn(f"{source.name}: {streaks.warning()}")

@@ -24,9 +24,7 @@ from hdrcam.data.saturation import clipped_fraction
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
-from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
-from hdrcam.recon.highlight_spill import subtract_highlight_spill
-from hdrcam.recon.tiling import clipped_mask
+from hdrcam.recon.frame_fit import fit_to_frame
 from hdrcam.train.checkpoint import TrainedModel
 from hdrcam.train.optical_capture import OpticalCapture
 
@@ -81,9 +79,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
                 network_output = _to_image(model.network(ldr).hdr)
             frame = _to_image(ldr)
-            clipped = clipped_mask(frame)
-            fitted, _ = refine_highlight_amplitudes(frame, network_output, capture_psfs[label], clipped)
-            reconstruction = subtract_highlight_spill(frame, fitted, capture_psfs[label], clipped)
+            reconstruction, _ = fit_to_frame(frame, network_output, capture_psfs[label])
             if label == first:
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, reconstruction)

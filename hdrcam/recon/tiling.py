@@ -183,8 +183,6 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
 
     ``regions``: the frame's :func:`plan_regions` with the same settings, when the caller has them already."""
     started = time.perf_counter()
-    if (core_px + 2 * halo_px) % MULTIPLE_PX:
-        raise ValueError(f"tile core + 2 halo must be a multiple of {MULTIPLE_PX}")
     height, width = ldr.shape[:2]
     frame = np.ascontiguousarray(ldr, np.float32)
     full_frame = _region(0, 0, height, width, core_px, halo_px)

@@ -11,6 +11,7 @@ import OpenEXR
 import pytest
 
 from hdrcam.cli import main
+from hdrcam.evaluate.metrics import psnr_linear
 from hdrcam.io.exr import read_exr, write_exr
 from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model
 
@@ -88,6 +89,20 @@ def test_reconstruct_writes_hdr_mask_and_preview(night_frame, tmp_path, capsys):
     assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
     _one_line_error(capsys, "already exists")
     assert (out / "frame.exr").read_bytes() == before
+
+
+def test_reconstruct_takes_any_tile_and_halo_with_the_same_result(night_frame, tmp_path):
+    """Tiles are resized internally to the network's multiple of 16: odd sizes work and score alike."""
+    outputs = []
+    for tile, halo in (("512", "32"), ("50", "13")):
+        out = tmp_path / f"tile{tile}"
+        assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out), "--no-adaptive",
+                     "--tile", tile, "--halo", halo]) == 0
+        outputs.append(read_exr(out / "frame.exr").rgb())
+    truth = read_exr(night_frame / "truth.exr").rgb()
+    scores = [psnr_linear(output, truth) for output in outputs]
+    assert outputs[1].shape == truth.shape and np.isfinite(outputs[1]).all()
+    assert abs(scores[0] - scores[1]) < 1.0
 
 
 def test_reconstruct_reads_16_bit_tiff(tmp_path):
