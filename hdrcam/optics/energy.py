@@ -13,6 +13,6 @@ def centre_energy_fraction(psf: torch.Tensor, radius_px: int) -> torch.Tensor:
     return centre.sum(dim=(-2, -1)) / psf.sum(dim=(-2, -1))
 
 
-def energy_regulariser(centre_fraction: torch.Tensor, target: float = 0.94) -> torch.Tensor:
-    """Mean squared deviation of the centre energy fraction from ``target`` (differentiable)."""
-    return ((centre_fraction - target) ** 2).mean()
+def energy_regulariser(centre_fraction: torch.Tensor, target: float | torch.Tensor = 0.94) -> torch.Tensor:
+    """Mean squared deviation of the centre energy fraction from ``target`` (a number or one per channel)."""
+    return ((centre_fraction - torch.as_tensor(target).to(centre_fraction)) ** 2).mean()

@@ -52,8 +52,8 @@ class DesignModel(nn.Module):
         self.capture, self.network = capture, network
 
     def forward(self, radiance: torch.Tensor, generator: torch.Generator):
-        ldr, centre_fraction = self.capture(radiance, generator)
-        return self.network(ldr), centre_fraction, ldr
+        ldr, energy_fractions = self.capture(radiance, generator)
+        return self.network(ldr), energy_fractions, ldr
 
 
 def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
@@ -141,10 +141,10 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         scenes = np.stack([source.training_scene(config.crop_px, margin, rng) for _ in range(config.batch)])
         radiance = torch.from_numpy(scenes).permute(0, 3, 1, 2).to(device)
         target = radiance[..., margin:margin + config.crop_px, margin:margin + config.crop_px]
-        output, centre_fraction, ldr = trained(radiance, noise)
+        output, energy_fractions, ldr = trained(radiance, noise)
         terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg, ldr.detach())
-        if centre_fraction is not None:
-            terms["energy"] = config.weights.energy * energy_regulariser(centre_fraction, model.capture.energy_target)
+        if energy_fractions is not None:
+            terms["energy"] = config.weights.energy * energy_regulariser(energy_fractions, model.capture.energy_target)
             terms["total"] = terms["total"] + terms["energy"]
         optimizer.zero_grad(set_to_none=True)
         terms["total"].backward()
@@ -154,8 +154,10 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         last = {"step": step + 1, **{k: round(float(v.detach()), 6) for k, v in terms.items()},
                 "lr": config.learning_rate_at(step, config.learning_rate),
                 "seconds": round(time.perf_counter() - began, 4)}
-        if centre_fraction is not None:
-            last["centre_energy"] = [round(float(v), 5) for v in centre_fraction.detach()]
+        if energy_fractions is not None:
+            last["centre_energy"] = [round(float(v), 5) for v in energy_fractions[0].detach()]
+            if len(energy_fractions) > 1:
+                last["guard_energy"] = [round(float(v), 5) for v in energy_fractions[1].detach()]
         if rank == 0:
             log_lines.append(json.dumps(last))
             if progress:

@@ -15,7 +15,7 @@ from hdrcam.recon.presets import preset
 from hdrcam.train.checkpoint import load_model, read_checkpoint
 from hdrcam.train.config import TrainConfig
 from hdrcam.train.design import train
-from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
+from hdrcam.train.optical_capture import OpticalCapture, box_energy_fractions, fixed_psf
 
 
 def test_a_few_steps_reduce_the_loss_on_a_fixed_batch():
@@ -37,24 +37,45 @@ def test_a_few_steps_reduce_the_loss_on_a_fixed_batch():
 
 
 def test_the_optics_gradient_trains_the_rank1_doe():
-    """Energy regulariser alone: the height map moves and the centre energy approaches the 94 % target."""
+    """Energy regulariser alone: from a plate that scatters far too much (its V, Q doubled: ~1 rad RMS phase),
+    the height map moves and the centre energy approaches its target."""
     capture = OpticalCapture(load_profile("simulated"), doe="rank1", seed=0)
+    target = capture.energy_target
     heightmap = capture.simulator.heightmap
+    with torch.no_grad():
+        heightmap.v.mul_(2.0)
+        heightmap.q.mul_(2.0)
     initial_heights = heightmap().detach().clone()
     _, fraction = capture.psf()
-    initial_gap = float((fraction.detach() - 0.94).abs().mean())
+    initial_gap = float((fraction.detach() - target).abs().mean())
     optimizer = torch.optim.Adam(heightmap.parameters(), lr=2e-2)
     for _ in range(15):
         _, fraction = capture.psf()
-        loss = energy_regulariser(fraction, 0.94)
+        loss = energy_regulariser(fraction, target)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
     _, fraction = capture.psf()
-    final_gap = float((fraction.detach() - 0.94).abs().mean())
+    final_gap = float((fraction.detach() - target).abs().mean())
     moved_m = float((heightmap().detach() - initial_heights).abs().max())
-    assert initial_gap > 0.015 and final_gap < initial_gap / 3
+    assert initial_gap > 0.2 and final_gap < initial_gap / 3
     assert moved_m > 1e-8  # more than 1 % of h_max
+
+
+def test_the_energy_targets_are_relative_to_the_bare_lens():
+    """The f/9.8 simulated lens loses 4-6 % outside the 7 x 7 centre to its Airy rings (most in red, whose rings
+    are widest): the DOE is asked to move 6 % of what the bare lens keeps central, and to move it beyond the
+    17 x 17 guard box as well."""
+    capture = OpticalCapture(load_profile("simulated"), doe="rank1", seed=0)
+    assert capture.energy_boxes_px == (3, 8)
+    flat = torch.zeros_like(capture.simulator.heightmap())
+    bare = box_energy_fractions(capture.simulator(heights_m=flat), capture.energy_boxes_px)
+    torch.testing.assert_close(capture.energy_target[0], 0.94 * bare[0])
+    torch.testing.assert_close(capture.energy_target[1], bare[1] - 0.06 * bare[0])
+    assert 0.93 < float(bare[0].min()) and float(bare[0].max()) < 0.975
+    assert float(bare[0, 0]) < float(bare[0, 1]) < float(bare[0, 2])  # Airy radius grows with wavelength
+    assert (bare[1] > bare[0]).all() and (bare[1] < 1.0).all()
+    assert OpticalCapture(load_profile("simulated"), psf=fixed_psf("dirac", 15)).energy_target is None
 
 
 def test_reconstruction_loss_reaches_the_height_map():
