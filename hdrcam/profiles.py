@@ -68,7 +68,6 @@ class SimulationSpec:
     propagation: str
     energy_target: float
     energy_centre_radius_px: int
-    energy_guard_radius_px: int | None  # spread light must also leave this box (see hdrcam.train.optical_capture)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -231,14 +230,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
         energy_target=simulation_table.number("energy_target", maximum=1.0, default=0.94),
         energy_centre_radius_px=simulation_table.number("energy_centre_radius_px", integer=True, positive=False,
                                                         default=1),
-        energy_guard_radius_px=(simulation_table.number("energy_guard_radius_px", integer=True)
-                                if "energy_guard_radius_px" in simulation_table.table else None),
     )
-    if simulation.energy_guard_radius_px is not None and not (
-            simulation.energy_centre_radius_px < simulation.energy_guard_radius_px <= simulation.psf_size_px // 2):
-        raise ProfileError(f"{path}: [simulation] energy_guard_radius_px: {simulation.energy_guard_radius_px} must "
-                           f"lie between energy_centre_radius_px ({simulation.energy_centre_radius_px}) and half "
-                           f"the PSF size ({simulation.psf_size_px // 2})")
     simulation_table.finish()
 
     calibration_table = _Section(path, "calibration", sections["calibration"])

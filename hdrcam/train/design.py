@@ -2,7 +2,8 @@
 
 Each step draws a batch of exposure-scaled scenes, captures them through the simulated optics and sensor
 (:mod:`hdrcam.train.optical_capture`), reconstructs, and minimises Eq. 10 plus, when the DOE is trained,
-the energy regulariser (94 % of the PSF energy in the centre). Adam with polynomial decay.
+the energy regulariser (94 % of the energy the bare lens keeps in the PSF centre;
+:func:`hdrcam.train.optical_capture.bare_lens_centre_fraction`). Adam with polynomial decay.
 
 A run folder holds: config.json, log.jsonl (one line per step), checkpoint.pt (resumable, every
 ``checkpoint_every`` steps and at the end), model.pt (the final network and PSF, no optimiser state),
@@ -52,8 +53,8 @@ class DesignModel(nn.Module):
         self.capture, self.network = capture, network
 
     def forward(self, radiance: torch.Tensor, generator: torch.Generator):
-        ldr, energy_fractions = self.capture(radiance, generator)
-        return self.network(ldr), energy_fractions, ldr
+        ldr, centre_fraction = self.capture(radiance, generator)
+        return self.network(ldr), centre_fraction, ldr
 
 
 def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
@@ -141,10 +142,10 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         scenes = np.stack([source.training_scene(config.crop_px, margin, rng) for _ in range(config.batch)])
         radiance = torch.from_numpy(scenes).permute(0, 3, 1, 2).to(device)
         target = radiance[..., margin:margin + config.crop_px, margin:margin + config.crop_px]
-        output, energy_fractions, ldr = trained(radiance, noise)
+        output, centre_fraction, ldr = trained(radiance, noise)
         terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg, ldr.detach())
-        if energy_fractions is not None:
-            terms["energy"] = config.weights.energy * energy_regulariser(energy_fractions, model.capture.energy_target)
+        if centre_fraction is not None:
+            terms["energy"] = config.weights.energy * energy_regulariser(centre_fraction, model.capture.energy_target)
             terms["total"] = terms["total"] + terms["energy"]
         optimizer.zero_grad(set_to_none=True)
         terms["total"].backward()
@@ -154,10 +155,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         last = {"step": step + 1, **{k: round(float(v.detach()), 6) for k, v in terms.items()},
                 "lr": config.learning_rate_at(step, config.learning_rate),
                 "seconds": round(time.perf_counter() - began, 4)}
-        if energy_fractions is not None:
-            last["centre_energy"] = [round(float(v), 5) for v in energy_fractions[0].detach()]
-            if len(energy_fractions) > 1:
-                last["guard_energy"] = [round(float(v), 5) for v in energy_fractions[1].detach()]
+        if centre_fraction is not None:
+            last["centre_energy"] = [round(float(v), 5) for v in centre_fraction.detach()]
         if rank == 0:
             log_lines.append(json.dumps(last))
             if progress:

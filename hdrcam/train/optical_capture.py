@@ -20,8 +20,7 @@ from torch import nn
 
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, dirac, dual_peak, star, two_point_star
 from hdrcam.optics.heightmap import heightmap_for_doe
-from hdrcam.optics.energy import centre_energy_fraction
-from hdrcam.optics.psf import OpticalSetup, PsfResult, PsfSimulator
+from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.optics.psf_file import load_psf
 from hdrcam.profiles import Profile
 from hdrcam.sensor import Sensor
@@ -54,15 +53,14 @@ class OpticalCapture(nn.Module):
         if (doe is None) == (psf is None):
             raise ValueError("give either a trainable DOE or a fixed PSF")
         self.sensor = Sensor.from_camera(profile.camera)
-        self.energy_target = None  # (boxes, 3) energy fractions the regulariser asks of a trainable DOE
+        self.energy_target = None  # (3,) centre energy fraction the regulariser asks of a trainable DOE
         if doe is not None:
             if doe not in TRAINABLE_DOES:
                 raise ValueError(f"trainable DOE must be one of {TRAINABLE_DOES}, got {doe!r}")
             self.simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, doe,
                                                                                                  seed=seed))
             self.psf_size_px = self.simulator.setup.psf_size_px
-            self.energy_boxes_px = energy_boxes_px(profile)
-            self.energy_target = energy_targets(self.simulator, self.energy_boxes_px, profile.simulation.energy_target)
+            self.energy_target = profile.simulation.energy_target * bare_lens_centre_fraction(self.simulator)
         else:
             self.simulator = None
             self.register_buffer("fixed", torch.from_numpy(np.ascontiguousarray(psf, dtype=np.float32)))
@@ -73,51 +71,34 @@ class OpticalCapture(nn.Module):
         return self.psf_size_px // 2
 
     def psf(self) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """(3, S, S) PSF with unit sum per channel, and its (boxes, 3) energy fractions (None when fixed)."""
+        """(3, S, S) PSF with unit sum per channel, and the centre energy fraction (None when fixed)."""
         if self.simulator is None:
             return self.fixed, None
         result = self.simulator()
-        return result.psf, box_energy_fractions(result, self.energy_boxes_px)
+        return result.psf, result.centre_energy_fraction
 
     def forward(self, radiance: torch.Tensor, generator: torch.Generator | None = None
                 ) -> tuple[torch.Tensor, torch.Tensor | None]:
-        psf, energy_fractions = self.psf()
+        psf, centre_fraction = self.psf()
         if self.windshield and self.training:
             psf = torch.from_numpy(two_point_star(self.psf_size_px, _windshield_angle_deg(generator))).to(psf)
         captured = self.sensor.capture(radiance, psf, generator=generator, differentiable=True)
         margin = self.margin_px
-        return captured[..., margin:captured.shape[-2] - margin, margin:captured.shape[-1] - margin], energy_fractions
+        return captured[..., margin:captured.shape[-2] - margin, margin:captured.shape[-1] - margin], centre_fraction
 
 
-def energy_boxes_px(profile: Profile) -> tuple[int, ...]:
-    """Half-widths of the boxes whose energy the regulariser holds: the centre, then the guard box if any."""
-    guard = profile.simulation.energy_guard_radius_px
-    return (profile.simulation.energy_centre_radius_px,) + (() if guard is None else (guard,))
+def bare_lens_centre_fraction(simulator: PsfSimulator) -> torch.Tensor:
+    """(3,) fraction of the energy the bare lens (the DOE's aperture, no relief) puts in the regulariser's centre.
 
-
-def box_energy_fractions(result: PsfResult, boxes_px: tuple[int, ...]) -> torch.Tensor:
-    """(boxes, 3): the energy in each (2r + 1)^2 box about the axis over all the energy reaching the sensor."""
-    rows = [result.centre_energy_fraction]
-    rows += [centre_energy_fraction(result.psf, radius) * result.crop_energy_fraction for radius in boxes_px[1:]]
-    return torch.stack(rows)
-
-
-def energy_targets(simulator: PsfSimulator, boxes_px: tuple[int, ...], keep_fraction: float) -> torch.Tensor:
-    """(boxes, 3) targets of the energy regulariser (paper Sec. 3.3), relative to the bare lens.
-
-    The paper keeps 94 % of the energy in the PSF centre with an f/5.5 lens whose diffraction spot fits in a
-    pixel, so there 94 % of the centre is 94 % of everything and the DOE spreads the other 6 % as streaks. A
+    The paper keeps 94 % of the energy in the PSF centre (Sec. 3.3) with an f/5.5 lens whose diffraction spot
+    fits in a pixel, so there 94 % of the centre is 94 % of everything and the DOE spreads the other 6 %. A
     slower simulated lens loses a few per cent outside the centre to its own Airy rings before any DOE (profile
     ``simulated``, f/9.8: 94-96 % in 7 x 7 pixels), and an absolute 94 % target leaves the DOE almost nothing to
-    spread. So the centre's target is ``keep_fraction`` (0.94) of what the bare lens (the DOE's aperture, no
-    relief) keeps there. A guard box, when the profile sets one, must lose that same spread light too: without
-    it the cheapest design met the centre target with a ring just outside the 7 x 7 box (a 2000-step run: the
-    green PSF at 4 px was 1.6e-3, 0.15e-3 for the bare lens), which only widens the clipped halo round every
-    highlight; the guard sends the spread light beyond it, where streaks are distinguishable from the blob.
+    spread: a 2000-step design under it ended at 0.933/0.940/0.941 (R/G/B) against 0.943/0.954/0.962 for the
+    bare lens. The regulariser's target is therefore ``energy_target`` (0.94) times this fraction.
     """
     with torch.no_grad():
-        bare = box_energy_fractions(simulator(heights_m=torch.zeros_like(simulator.heightmap())), boxes_px)
-    return bare - (1.0 - keep_fraction) * bare[0]
+        return simulator(heights_m=torch.zeros_like(simulator.heightmap())).centre_energy_fraction.detach()
 
 
 def _windshield_angle_deg(generator: torch.Generator | None) -> float:
