@@ -91,7 +91,7 @@ def test_reconstruct_writes_hdr_mask_and_preview(night_frame, tmp_path, capsys):
     assert (out / "frame.exr").read_bytes() == before
 
 
-def test_reconstruct_takes_any_tile_and_halo_with_the_same_result(night_frame, tmp_path):
+def test_reconstruct_takes_any_tile_and_halo_and_scores_alike(night_frame, tmp_path):
     """Tiles are resized internally to the network's multiple of 16: odd sizes work and score alike."""
     outputs = []
     for tile, halo in (("512", "32"), ("50", "13")):
