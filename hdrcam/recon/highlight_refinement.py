@@ -86,22 +86,24 @@ def refine_highlight_amplitudes(ldr: np.ndarray, hdr: np.ndarray, psf: np.ndarra
     clusters = clipped_clusters(clipped, radius)
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     scales = []
-    for crop in clusters:
-        patch, patch_scales = _refine_crop(ldr[crop], hdr[crop], clipped[crop], kernel, iterations, damping, floor)
-        refined[crop] = np.where(clipped[crop][..., None], patch, refined[crop])
+    for crop, own in clusters:
+        patch, patch_scales = _refine_crop(ldr[crop], hdr[crop], clipped[crop], own, kernel, iterations, damping,
+                                           floor)
+        refined[crop] = np.where(own[..., None], patch, refined[crop])
         scales.append(patch_scales)
     all_scales = np.concatenate(scales)
     median = float(np.median(all_scales)) if all_scales.size else 1.0
     return refined, RefinementReport(blob_count - 1, len(clusters), median, time.perf_counter() - started)
 
 
-def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, kernel: torch.Tensor, iterations: int,
-                 damping: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """One cluster's crop -> (refined crop, a_k / e_k of the blobs and channels the network painted)."""
-    blob_count, labels = cv2.connectedComponents(clipped.astype(np.uint8), connectivity=8)
+def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, own: np.ndarray, kernel: torch.Tensor,
+                 iterations: int, damping: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """One cluster's crop (``own``: its clipped pixels; ``clipped``: all in the crop, which say nothing) ->
+    (refined crop, a_k / e_k of the blobs and channels the network painted)."""
+    blob_count, labels = cv2.connectedComponents(own.astype(np.uint8), connectivity=8)
     frame = torch.from_numpy(np.ascontiguousarray(ldr.transpose(2, 0, 1), np.float32))
     estimate = torch.from_numpy(np.ascontiguousarray(hdr.transpose(2, 0, 1), np.float32))
-    inside = torch.from_numpy(clipped)
+    inside = torch.from_numpy(own)
     near = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2))
     unclipped = torch.from_numpy(near == 0).to(torch.float32)
     index = torch.from_numpy(labels.astype(np.int64)).reshape(-1)

@@ -31,9 +31,8 @@ def subtract_highlight_spill(frame: np.ndarray, hdr: np.ndarray, psf: np.ndarray
     if not clipped.any():
         return output
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
-    for crop in clipped_clusters(clipped, psf.shape[-1] // 2):
-        inside = clipped[crop][..., None]
-        highlights = np.where(inside, hdr[crop], 0.0).astype(np.float32).transpose(2, 0, 1)
-        spill = fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel).numpy().transpose(1, 2, 0)
-        output[crop] = np.where(inside, hdr[crop], np.clip(frame[crop] - spill, 0.0, None))
-    return output
+    spill = np.zeros_like(output)
+    for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
+        highlights = np.where(own[..., None], hdr[crop], 0.0).astype(np.float32).transpose(2, 0, 1)
+        spill[crop] += fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel).numpy().transpose(1, 2, 0)
+    return np.where(clipped[..., None], hdr, np.clip(output - spill, 0.0, None)).astype(np.float32)

@@ -77,12 +77,19 @@ def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:
     return np.maximum.reduce([ldr[..., channel] for channel in range(ldr.shape[-1])]) >= level
 
 
-def clipped_clusters(clipped: np.ndarray, reach_px: int) -> list[tuple[slice, slice]]:
-    """Crops (rows, columns) of the clusters of clipped pixels whose reach_px squares overlap, each grown by
-    reach_px (within the frame): where the light of a cluster's highlights can land through a PSF of that radius."""
+def clipped_clusters(clipped: np.ndarray, reach_px: int) -> list[tuple[tuple[slice, slice], np.ndarray]]:
+    """The clusters of clipped pixels whose reach_px squares overlap, each as (crop, own): the crop (rows,
+    columns) is the cluster grown by reach_px (within the frame), where its highlights' light can land through a
+    PSF of that radius; ``own`` (the crop's shape, bool) marks the cluster's own clipped pixels. Crops of two
+    clusters can overlap, their reaches cannot: a crop may hold another cluster's clipped pixels, never its light."""
     square = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach_px + 1,) * 2)
-    _, _, boxes, _ = cv2.connectedComponentsWithStats(cv2.dilate(clipped.astype(np.uint8), square), connectivity=8)
-    return [(slice(top, top + height), slice(left, left + width)) for left, top, width, height, _ in boxes[1:]]
+    _, labels, boxes, _ = cv2.connectedComponentsWithStats(cv2.dilate(clipped.astype(np.uint8), square),
+                                                           connectivity=8)
+    clusters = []
+    for label, (left, top, width, height, _) in enumerate(boxes[1:], start=1):
+        crop = (slice(top, top + height), slice(left, left + width))
+        clusters.append((crop, clipped[crop] & (labels[crop] == label)))
+    return clusters
 
 
 def _ramp(length: int, halo: int, blend: int) -> np.ndarray:

@@ -108,12 +108,12 @@ def _tails(angle_deg: float) -> torch.Tensor:
 def _crops(frame: np.ndarray, clipped: np.ndarray) -> list[_Crop]:
     near = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2))
     crops = []
-    for where in clipped_clusters(clipped, PSF_SIZE_PX // 2):
-        blob_count, labels = cv2.connectedComponents(clipped[where].astype(np.uint8), connectivity=8)
+    for where, own in clipped_clusters(clipped, PSF_SIZE_PX // 2):
+        blob_count, labels = cv2.connectedComponents(own.astype(np.uint8), connectivity=8)
         streaks = frame[where] - directional_background(frame[where])
         to_tensor = lambda image: torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
         weight = np.repeat((near[where] == 0)[..., None], 3, axis=-1).astype(np.float32)
-        mask = np.repeat(clipped[where][..., None], 3, axis=-1).astype(np.float32)
+        mask = np.repeat(own[..., None], 3, axis=-1).astype(np.float32)
         crops.append(_Crop(where, to_tensor(streaks), to_tensor(weight), to_tensor(mask),
                            torch.from_numpy(labels.astype(np.int64)).reshape(-1), blob_count))
     return crops

@@ -7,7 +7,7 @@ import torch
 
 from hdrcam.optics.analytic import star
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
-from hdrcam.recon.tiling import clipped_mask
+from hdrcam.recon.tiling import clipped_clusters, clipped_mask
 from hdrcam.sensor import fft_convolve
 
 
@@ -42,3 +42,25 @@ def test_too_bright_highlights_clamp_the_background_at_zero_and_no_clipping_retu
     assert output.min() >= 0.0 and np.isfinite(output).all()
     dark = np.full((32, 32, 3), 0.2, np.float32)
     assert np.array_equal(subtract_highlight_spill(dark, dark * 7, psf, clipped_mask(dark)), dark)
+
+
+def test_clusters_whose_crops_overlap_each_have_their_spill_removed():
+    """An L-shaped lamp and a small one inside the L's bounding box, more than two PSF radii from it (two
+    clusters): the L's crop holds the small lamp's reach, so a crop-by-crop overwrite would restore its spill."""
+    psf = star(31, points=8)
+    scene = np.full((200, 200, 3), 0.1, np.float32)
+    scene[50:54, 50:54] = (80.0, 80.0, 80.0)  # first in raster order, so its crop is handled first
+    scene[140:144, 40:144] = (90.0, 60.0, 30.0)
+    scene[80:144, 140:144] = (90.0, 60.0, 30.0)
+    frame = np.clip(convolve(scene, psf), 0.0, 1.0)
+    clipped = clipped_mask(frame)
+    clusters = clipped_clusters(clipped, 15)
+    assert len(clusters) == 2
+    (first, _), (second, _) = clusters
+    in_both = np.zeros(clipped.shape, int)
+    in_both[first] += 1
+    in_both[second] += 1
+    assert (in_both > 1).any()
+    output = subtract_highlight_spill(frame, scene, psf, clipped)
+    background = convolve(np.where(clipped[..., None], 0.0, scene).astype(np.float32), psf)
+    np.testing.assert_allclose(output[~clipped], background[~clipped], atol=1e-4)  # float32 FFTs of 2^8 lamps
