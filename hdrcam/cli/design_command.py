@@ -44,7 +44,8 @@ def register(commands) -> None:
     choice = design.add_mutually_exclusive_group()
     choice.add_argument("--doe", choices=TRAINABLE_DOES, default=None, help="trained height map (default rank1)")
     choice.add_argument("--psf", default=None, metavar="|".join(FIXED_PSFS) + "|FILE",
-                        help="a fixed PSF: train the network only")
+                        help="a fixed PSF: train the network only (dirac, star8 and dual-peak are imaged "
+                             "through the profile's bare lens)")
     _training_options(design, 1000)
     design.set_defaults(run=run_design)
 

@@ -55,7 +55,7 @@ def run(arguments: argparse.Namespace) -> int:
     if arguments.psf:
         if arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
             raise InputError(f"--psf {arguments.psf} does not exist")
-        psf = fixed_psf(arguments.psf, profile.simulation.psf_size_px)
+        psf = fixed_psf(arguments.psf, profile)
     else:
         psf = model.psf
     margin = psf.shape[-1] // 2

@@ -62,7 +62,7 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool)
     preset = preset_named(config.preset)
     vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
     if config.psf is not None:
-        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile.simulation.psf_size_px),
+        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile),
                                  windshield=config.psf == "windshield")
     else:
         capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)

@@ -3,7 +3,9 @@
 Either the DOE is trained (``rank1`` or ``freeform`` height map, PSF from the wave-optics model of the
 profile's optics, recomputed every step so gradients reach the height map), or the PSF is fixed: one of
 the paper's hand-designed comparisons (``dirac``, ``star8``, ``dual-peak``, Table 2) or a PSF EXR such as
-a calibration record's measured psf.exr. ``windshield`` draws a new 2-point star (a windshield streak)
+a calibration record's measured psf.exr. A hand-designed PSF is what its DOE would make in this camera:
+the pattern convolved with the profile's bare-lens PSF (:func:`through_bare_lens`), so ``dirac`` is the
+camera with no DOE, and every row of Table 2 shares the lens's diffraction blur. ``windshield`` draws a new 2-point star (a windshield streak)
 for every batch, rotated by an angle from (-8, -2.5) U (2.5, 8) degrees (paper Sec. 7).
 
 Scenes come in padded by ``margin_px`` = PSF size // 2 on every side; the captured frame is the centre,
@@ -23,24 +25,42 @@ from hdrcam.optics.heightmap import heightmap_for_doe
 from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.optics.psf_file import load_psf
 from hdrcam.profiles import Profile
-from hdrcam.sensor import Sensor
+from hdrcam.sensor import Sensor, fft_convolve
 
 TRAINABLE_DOES = ("rank1", "freeform")
 FIXED_PSFS = ("dirac", "star8", "dual-peak", "windshield")
 WINDSHIELD_REFERENCE_DEG = 5.0  # the angle of the PSF stored with a windshield model
 
 
-def fixed_psf(choice: str, size_px: int) -> np.ndarray:
-    """A hand-designed PSF of the paper's Table 2 (``size_px`` square) or a PSF EXR file."""
-    if choice == "dirac":
-        return dirac(size_px)
-    if choice == "star8":
-        return star(size_px, points=8)
-    if choice == "dual-peak":
-        return dual_peak(size_px)
+DOE_PATTERNS = {"dirac": dirac, "star8": lambda size_px: star(size_px, points=8), "dual-peak": dual_peak}
+
+
+def fixed_psf(choice: str, profile: Profile) -> np.ndarray:
+    """The (3, S, S) PSF of a fixed-PSF run, S = the profile's PSF size: a hand-designed DOE of the paper's
+    Table 2 through the profile's bare lens, the windshield streak (Sec. 7) or a PSF EXR file."""
+    size_px = profile.simulation.psf_size_px
+    if choice in DOE_PATTERNS:
+        return through_bare_lens(DOE_PATTERNS[choice](size_px), profile)
     if choice == "windshield":
         return two_point_star(size_px, WINDSHIELD_REFERENCE_DEG)
     return load_psf(Path(choice))
+
+
+def through_bare_lens(pattern: np.ndarray, profile: Profile) -> np.ndarray:
+    """(3, S, S) unit-sum DOE pattern convolved with the profile's bare-lens PSF (the DOE's aperture with no
+    relief, same S), cropped to S around the axis and renormalised to unit sum per channel.
+
+    The hand-designed PSFs are drawn on the pixel grid, sharper than any lens can image: the ``simulated``
+    profile's f/9.8 lens keeps only 0.53 / 0.66 / 0.80 (R/G/B) of a point's light in its centre pixel. Without
+    this, a "Dirac" baseline would be a diffraction-free camera and the learned DOEs, simulated through the
+    real aperture, would be compared with a sharper lens rather than with no DOE.
+    """
+    simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, "none"))
+    with torch.no_grad():
+        lens = simulator().psf
+        blurred = fft_convolve(torch.from_numpy(np.ascontiguousarray(pattern, np.float32)).to(lens), lens)
+    blurred = blurred.clamp(min=0.0)  # FFT round-off around zero
+    return (blurred / blurred.sum(dim=(-2, -1), keepdim=True)).float().numpy()
 
 
 class OpticalCapture(nn.Module):

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from hdrcam.errors import InputError
+from hdrcam.optics.analytic import dirac, star
 from hdrcam.optics.energy import energy_regulariser
 from hdrcam.profiles import load_profile
 from hdrcam.recon.losses import LossWeights, reconstruction_loss
@@ -22,7 +23,7 @@ def test_a_few_steps_reduce_the_loss_on_a_fixed_batch():
     torch.manual_seed(0)
     radiance = torch.rand(2, 3, 32, 32) * 0.8
     radiance[:, :, 10:13, 10:13] = 40.0
-    capture = OpticalCapture(load_profile("simulated"), psf=fixed_psf("star8", 15))
+    capture = OpticalCapture(load_profile("simulated"), psf=star(15, points=8))
     ldr, _ = capture(torch.nn.functional.pad(radiance, (7, 7, 7, 7)), torch.Generator().manual_seed(0))
     network = ReconstructionNet(preset("fast"))
     optimizer = torch.optim.Adam(network.parameters(), lr=1e-3)
@@ -70,7 +71,7 @@ def test_the_energy_target_is_94_percent_of_what_the_bare_lens_keeps_central():
     torch.testing.assert_close(capture.energy_target, 0.94 * bare)
     assert 0.93 < float(bare.min()) and float(bare.max()) < 0.975
     assert float(bare[0]) < float(bare[1]) < float(bare[2])  # Airy radius grows with wavelength
-    assert OpticalCapture(load_profile("simulated"), psf=fixed_psf("dirac", 15)).energy_target is None
+    assert OpticalCapture(load_profile("simulated"), psf=dirac(15)).energy_target is None
 
 
 def test_reconstruction_loss_reaches_the_height_map():
@@ -116,7 +117,7 @@ def test_resume_continues_exactly_where_an_interrupted_run_would_be(tmp_path):
 def test_fixed_psf_runs_train_only_the_network_and_load_back(tmp_path):
     train(_tiny(doe=None, psf="dual-peak", steps=2), tmp_path / "run", quiet=True)
     model = load_model(tmp_path / "run" / "model.pt")
-    assert np.allclose(model.psf, fixed_psf("dual-peak", load_profile("simulated").simulation.psf_size_px))
+    assert np.allclose(model.psf, fixed_psf("dual-peak", load_profile("simulated")))
     assert read_checkpoint(tmp_path / "run" / "model.pt")["doe"] is None
     assert model.preset == "fast" and model.step == 2 and not model.network.training
 
