@@ -15,8 +15,7 @@ pixel count: the streaks move an amplitude most of the way (1 / (1 + DAMPING) of
 where they see it clearly, faint streaks move it less, and a PSF without tails (Dirac: R_k = 0) leaves the
 network's amplitude as it is. FLOOR 1e-4 against 1e-6 and 1e-8 (shape cap 2, no flat share): rank-1 32.58
 against 32.10 and 32.07 dB, Dirac 33.53 / 33.53 / 33.55, demo 51.71 / 52.26 / 52.26 (set-up below).
-Damped Jacobi steps with the Hessian's row sums (positive, so steps never overshoot) solve it; a_k >= 0,
-outputs clamped to 2^8.
+Damped Jacobi steps solve it (hdrcam.recon.blob_amplitudes); a_k >= 0, outputs clamped to 2^8.
 
 The shape is the network's, shrunk towards flat: phi_k = SHAPE_FLAT_WEIGHT f_k + (1 - SHAPE_FLAT_WEIGHT) c_k,
 with c_k the network's excess capped at SHAPE_CAP times its blob mean and f_k uniform over the pixels the
@@ -44,6 +43,7 @@ import cv2
 import numpy as np
 import torch
 
+from hdrcam.recon.blob_amplitudes import blob_sums, fit_blob_amplitudes, hessian_row_sums
 from hdrcam.recon.stages import HIGHLIGHT_PEAK
 from hdrcam.recon.tiling import clipped_clusters
 from hdrcam.sensor import fft_convolve
@@ -110,20 +110,13 @@ def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, own: np.
     excess = (estimate - 1.0).clamp(min=0.0) * inside
     base = estimate - excess
     pixels = torch.zeros(blob_count).index_add_(0, index, torch.ones(index.numel()))
-    painted = _blob_sums(excess, index, blob_count) / pixels.clamp(min=1.0)  # e_k, (3, blobs)
+    painted = blob_sums(excess, index, blob_count) / pixels.clamp(min=1.0)  # e_k, (3, blobs)
     painted[:, 0] = 0.0  # label 0: the unclipped background keeps its values
     shape = _blob_shape(excess, painted, inside, index, blob_count, pixels)
-    flipped = torch.flip(kernel, (-2, -1))  # convolving with it correlates with the PSF (the adjoint of P *)
-    row_sums = _blob_sums(shape * fft_convolve(unclipped * fft_convolve(shape, kernel), flipped), index, blob_count)
-    prior = damping * row_sums + floor * pixels
-    amplitude = painted.clone()
-    for _ in range(iterations):
-        model = base + amplitude[:, index].reshape(shape.shape) * shape
-        residual = unclipped * (frame - fft_convolve(model, kernel))
-        gradient = _blob_sums(shape * fft_convolve(residual, flipped), index, blob_count)
-        step = (gradient - prior * (amplitude - painted)) / (row_sums + prior).clamp(min=1e-12)
-        amplitude = (amplitude + step).clamp(min=0.0)
-        amplitude[:, 0] = 0.0
+    row_sums = hessian_row_sums(unclipped, shape, index, blob_count, kernel)
+    amplitude = fit_blob_amplitudes(frame - fft_convolve(base, kernel), unclipped, shape, index, blob_count, kernel,
+                                    iterations, prior_weight=damping * row_sums + floor * pixels,
+                                    prior_mean=painted, row_sums=row_sums)
     refined = (base + amplitude[:, index].reshape(shape.shape) * shape).clamp(max=HIGHLIGHT_PEAK)
     seen = painted[:, 1:] > PAINTED_MIN
     return refined.numpy().transpose(1, 2, 0), (amplitude[:, 1:][seen] / painted[:, 1:][seen]).numpy()
@@ -143,10 +136,4 @@ def _blob_shape(excess: torch.Tensor, painted: torch.Tensor, inside: torch.Tenso
 
 def _blob_mean(values: torch.Tensor, index: torch.Tensor, blob_count: int, pixels: torch.Tensor) -> torch.Tensor:
     """(3, H, W) -> (3, H, W): each pixel's blob mean of ``values``."""
-    return (_blob_sums(values, index, blob_count) / pixels.clamp(min=1.0))[:, index].reshape(values.shape)
-
-
-def _blob_sums(values: torch.Tensor, index: torch.Tensor, blob_count: int) -> torch.Tensor:
-    """(3, H, W) -> (3, blobs): the sum of each channel over each label."""
-    sums = torch.zeros(values.shape[0], blob_count, dtype=values.dtype)
-    return sums.index_add_(1, index, values.reshape(values.shape[0], -1))
+    return (blob_sums(values, index, blob_count) / pixels.clamp(min=1.0))[:, index].reshape(values.shape)

@@ -10,7 +10,7 @@ clip leave streaks worth removing, and their streaks are linear in their (unknow
 with T_theta the PSF without its centre, 1_k the k-th clipped blob (flat), a_k >= 0 its brightness per
 channel (relative radiance) and b the frame without streaks. b is estimated from the frame itself: the
 median of the pixels BACKGROUND_OFFSETS_PX to either side horizontally, which for a streak within 8 degrees
-of the vertical lies off the streak. Per angle, damped Jacobi steps with the Hessian's row sums fit the a_k;
+of the vertical lies off the streak. Per angle, damped Jacobi steps fit the a_k (hdrcam.recon.blob_amplitudes);
 the angle is the one with the least residual on a coarse grid (ANGLE_STEP_DEG) refined twice by halving.
 The fitted streaks are then subtracted from the unclipped pixels. Pixels where the streak itself clipped
 stay clipped: their light is lost (hdrcam.recon.streaks warns of that case for the DOE).
@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, two_point_star
+from hdrcam.recon.blob_amplitudes import fit_blob_amplitudes
 from hdrcam.recon.tiling import clipped_clusters, clipped_mask
 from hdrcam.sensor import fft_convolve
 
@@ -121,16 +122,8 @@ def _crops(frame: np.ndarray, clipped: np.ndarray) -> list[_Crop]:
 
 def _fit(crop: _Crop, tails: torch.Tensor, iterations: int) -> torch.Tensor:
     """(3, blobs) brightness a_k >= 0 of each clipped blob (label 0, the background, stays 0)."""
-    flipped = torch.flip(tails, (-2, -1))
-    sums = lambda values: torch.zeros(3, crop.blob_count).index_add_(1, crop.index, values.reshape(3, -1))
-    row_sums = sums(crop.blob_mask * fft_convolve(crop.weight * fft_convolve(crop.blob_mask, tails), flipped))
-    amplitude = torch.zeros(3, crop.blob_count)
-    for _ in range(iterations):
-        model = fft_convolve(amplitude[:, crop.index].reshape(crop.blob_mask.shape) * crop.blob_mask, tails)
-        gradient = sums(crop.blob_mask * fft_convolve(crop.weight * (crop.streaks - model), flipped))
-        amplitude = (amplitude + gradient / row_sums.clamp(min=1e-12)).clamp(min=0.0)
-        amplitude[:, 0] = 0.0
-    return amplitude
+    return fit_blob_amplitudes(crop.streaks, crop.weight, crop.blob_mask, crop.index, crop.blob_count, tails,
+                               iterations)
 
 
 def _residual(crops: list[_Crop], angle_deg: float) -> float:
