@@ -26,7 +26,7 @@ def test_with_the_true_highlights_the_unclipped_pixels_are_the_background_seen_t
     guess = np.where(clipped[..., None], scene, rng.uniform(0, 5, scene.shape)).astype(np.float32)  # junk outside
     output = subtract_highlight_spill(frame, guess, psf, clipped)
     background = convolve(np.where(clipped[..., None], 0.0, scene).astype(np.float32), psf)
-    np.testing.assert_allclose(output[~clipped], background[~clipped], atol=1e-5)
+    np.testing.assert_allclose(output[~clipped], background[~clipped], atol=5e-5)  # float32 FFT round-off of a 90x highlight
     np.testing.assert_array_equal(output[clipped], scene[clipped])
     far = np.ones_like(clipped)
     far[40 - 15 - 4:44 + 15 + 4, 50 - 15 - 4:54 + 15 + 4] = False  # beyond the PSF's reach of the blob
