@@ -5,8 +5,9 @@ profile's optics, recomputed every step so gradients reach the height map), or t
 the paper's hand-designed comparisons (``dirac``, ``star8``, ``dual-peak``, Table 2) or a PSF EXR such as
 a calibration record's measured psf.exr. A hand-designed PSF is what its DOE would make in this camera:
 the pattern convolved with the profile's bare-lens PSF (:func:`through_bare_lens`), so ``dirac`` is the
-camera with no DOE, and every row of Table 2 shares the lens's diffraction blur. ``windshield`` draws a new 2-point star (a windshield streak)
-for every batch, rotated by an angle from (-8, -2.5) U (2.5, 8) degrees (paper Sec. 7).
+camera with no DOE, and every row of Table 2 shares the lens's diffraction blur. ``windshield`` draws a
+new 2-point star (a windshield streak) for every batch, rotated by an angle from (-8, -2.5) U (2.5, 8)
+degrees (paper Sec. 7); it stays pixel-sharp, as its network was trained.
 
 Scenes come in padded by ``margin_px`` = PSF size // 2 on every side; the captured frame is the centre,
 so light from outside the crop spreads into it as it would on a full sensor.
