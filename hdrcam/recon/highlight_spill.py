@@ -34,5 +34,6 @@ def subtract_highlight_spill(frame: np.ndarray, hdr: np.ndarray, psf: np.ndarray
     spill = np.zeros_like(output)
     for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
         highlights = np.where(own[..., None], hdr[crop], 0.0).astype(np.float32).transpose(2, 0, 1)
-        spill[crop] += fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel).numpy().transpose(1, 2, 0)
+        spilled = fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel)
+        spill[crop] += spilled.numpy().transpose(1, 2, 0)
     return np.where(clipped[..., None], hdr, np.clip(output - spill, 0.0, None)).astype(np.float32)

@@ -3,7 +3,7 @@
 Each step draws a batch of exposure-scaled scenes, captures them through the simulated optics and sensor
 (:mod:`hdrcam.train.optical_capture`), reconstructs, and minimises Eq. 10 plus, when the DOE is trained,
 the energy regulariser (94 % of the energy the bare lens keeps in the PSF centre;
-:func:`hdrcam.train.optical_capture.bare_lens_centre_fraction`). Adam with polynomial decay.
+:func:`hdrcam.train.optical_capture.bare_lens`). Adam with polynomial decay.
 
 A run folder holds: config.json, log.jsonl (one line per step), checkpoint.pt (resumable, every
 ``checkpoint_every`` steps and at the end), model.pt (the final network and PSF, no optimiser state),

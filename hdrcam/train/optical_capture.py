@@ -23,7 +23,7 @@ from torch import nn
 
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, dirac, dual_peak, star, two_point_star
 from hdrcam.optics.heightmap import heightmap_for_doe
-from hdrcam.optics.psf import OpticalSetup, PsfSimulator
+from hdrcam.optics.psf import OpticalSetup, PsfResult, PsfSimulator
 from hdrcam.optics.psf_file import load_psf
 from hdrcam.profiles import Profile
 from hdrcam.sensor import Sensor, fft_convolve
@@ -56,9 +56,8 @@ def through_bare_lens(pattern: np.ndarray, profile: Profile) -> np.ndarray:
     this, a "Dirac" baseline would be a diffraction-free camera and the learned DOEs, simulated through the
     real aperture, would be compared with a sharper lens rather than with no DOE.
     """
-    simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, "none"))
+    lens = bare_lens(profile).psf
     with torch.no_grad():
-        lens = simulator().psf
         blurred = fft_convolve(torch.from_numpy(np.ascontiguousarray(pattern, np.float32)).to(lens), lens)
     blurred = blurred.clamp(min=0.0)  # FFT round-off around zero
     return (blurred / blurred.sum(dim=(-2, -1), keepdim=True)).float().numpy()
@@ -81,7 +80,7 @@ class OpticalCapture(nn.Module):
             self.simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, doe,
                                                                                                  seed=seed))
             self.psf_size_px = self.simulator.setup.psf_size_px
-            self.energy_target = profile.simulation.energy_target * bare_lens_centre_fraction(self.simulator)
+            self.energy_target = profile.simulation.energy_target * bare_lens(profile).centre_energy_fraction
         else:
             self.simulator = None
             self.register_buffer("fixed", torch.from_numpy(np.ascontiguousarray(psf, dtype=np.float32)))
@@ -108,18 +107,20 @@ class OpticalCapture(nn.Module):
         return captured[..., margin:captured.shape[-2] - margin, margin:captured.shape[-1] - margin], centre_fraction
 
 
-def bare_lens_centre_fraction(simulator: PsfSimulator) -> torch.Tensor:
-    """(3,) fraction of the energy the bare lens (the DOE's aperture, no relief) puts in the regulariser's centre.
+def bare_lens(profile: Profile) -> PsfResult:
+    """The profile's lens behind the DOE's aperture with no relief: its PSF and centre energy fraction.
 
-    The paper keeps 94 % of the energy in the PSF centre (Sec. 3.3) with an f/5.5 lens whose diffraction spot
-    fits in a pixel, so there 94 % of the centre is 94 % of everything and the DOE spreads the other 6 %. A
-    slower simulated lens loses a few per cent outside the centre to its own Airy rings before any DOE (profile
-    ``simulated``, f/9.8: 94-96 % in 7 x 7 pixels), and an absolute 94 % target leaves the DOE almost nothing to
-    spread: a 2000-step design under it ended at 0.933/0.940/0.941 (R/G/B) against 0.943/0.954/0.962 for the
-    bare lens. The regulariser's target is therefore ``energy_target`` (0.94) times this fraction.
+    Two things rest on it. Hand-designed PSFs are imaged through it (:func:`through_bare_lens`). And the
+    regulariser's target is ``energy_target`` (0.94) times its centre fraction: the paper keeps 94 % of the
+    energy in the PSF centre (Sec. 3.3) with an f/5.5 lens whose diffraction spot fits in a pixel, so there 94 %
+    of the centre is 94 % of everything and the DOE spreads the other 6 %. A slower simulated lens loses a few
+    per cent outside the centre to its own Airy rings before any DOE (profile ``simulated``, f/9.8: 94-96 % in
+    7 x 7 pixels), and an absolute 94 % target leaves the DOE almost nothing to spread: a 2000-step design under
+    it ended at 0.933/0.940/0.941 (R/G/B) against 0.943/0.954/0.962 for the bare lens.
     """
+    simulator = PsfSimulator(OpticalSetup.from_profile(profile), heightmap_for_doe(profile.doe, "none"))
     with torch.no_grad():
-        return simulator(heights_m=torch.zeros_like(simulator.heightmap())).centre_energy_fraction.detach()
+        return simulator()
 
 
 def _windshield_angle_deg(generator: torch.Generator | None) -> float:
