@@ -14,10 +14,14 @@ HDR_SUFFIXES = (".exr", ".hdr")
 
 
 def read_hdr_image(path: Path) -> np.ndarray:
-    """H x W x 3 float32 linear RGB from an EXR or Radiance file; NaN/Inf and negatives are refused/zeroed."""
+    """H x W x 3 float32 linear RGB from an EXR or Radiance file; NaN/Inf and negatives are refused/zeroed.
+    A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read
+    as grey, R = G = B = Y."""
     path = Path(path)
     if path.suffix.lower() == ".exr":
-        image = read_exr(path).rgb()
+        exr = read_exr(path)
+        image = exr.rgb() if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels) \
+            else np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
     else:
         image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:

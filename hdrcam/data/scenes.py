@@ -1,4 +1,9 @@
-"""Where training and test scenes come from: the procedural night-scene generator or a folder of HDR files.
+"""Where training and test scenes come from: the procedural night-scene generator, folders of HDR files,
+or a weighted mixture of them.
+
+A data specification is ``procedural``, a folder, or a comma-separated mixture ``SOURCE:WEIGHT,...``
+(e.g. ``runs/data/train:0.6,procedural:0.3,photos/:0.1``): each training draw picks a source with
+probability proportional to its weight, then a scene from it. Test sets come from the first source.
 
 A scene is H x W x 3 float32 linear radiance, exposure-scaled as the paper does (hdrcam.data.saturation):
 training scenes so that 1-3 % of the pixels of the centre region exceed 1, test scenes exactly 1.5 %,
@@ -12,29 +17,53 @@ from pathlib import Path
 
 import numpy as np
 
+from hdrcam.data.augment import undistorted_rows, white_balance_jitter
 from hdrcam.data.crops import rotate_flip, saturated_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
 from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, scale_to_clipped_fraction
+from hdrcam.errors import InputError
 
 PROCEDURAL = "procedural"
 PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
 TEST_SEED_BASE = 1_000_000  # test scenes never share seeds with training draws
 
 
+def parse_mixture(data: str) -> list[tuple[str, float]]:
+    """``SOURCE[:WEIGHT],...`` -> [(source, weight)]; a source without a weight weighs 1."""
+    mixture = []
+    for entry in str(data).split(","):
+        source, _, weight = entry.rpartition(":")
+        try:
+            mixture.append((source, float(weight)) if source else (entry, 1.0))
+        except ValueError:
+            mixture.append((entry, 1.0))  # a ':' inside a path, not a weight
+    if not mixture or any(not source or not weight > 0 for source, weight in mixture):
+        raise InputError(f"--data {data!r}: expected SOURCE[:WEIGHT],... with positive weights")
+    return mixture
+
+
 class SceneSource:
-    """Training draws and a fixed test set from ``procedural`` or a folder of .exr/.hdr files."""
+    """Training draws from a mixture of ``procedural`` and folders of .exr/.hdr files (module docstring);
+    a fixed test set from the first of them."""
 
     def __init__(self, data: str | Path):
         self.description = str(data)
-        self.folder = None if str(data) == PROCEDURAL else HdrFolder(Path(data))
+        self.mixture = parse_mixture(str(data))
+        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source)) for source, _ in self.mixture]
+        weights = np.array([weight for _, weight in self.mixture])
+        self.probabilities = weights / weights.sum()
+        self.folder = self.folders[0]
 
     def _raw_crop(self, size_px: int, rng: np.random.Generator) -> np.ndarray:
-        if self.folder is None:
+        folder = self.folders[int(rng.choice(len(self.folders), p=self.probabilities))] \
+            if len(self.folders) > 1 else self.folder
+        if folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px)
             image = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
         else:
-            image = self.folder.images[int(rng.integers(len(self.folder)))]
+            image = white_balance_jitter(undistorted_rows(folder.images[int(rng.integers(len(folder)))], size_px),
+                                         rng)
         return saturated_crop(image, size_px, rng)
 
     def training_scene(self, size_px: int, margin_px: int, rng: np.random.Generator) -> np.ndarray:
