@@ -63,6 +63,14 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
     return preview
 
 
+def confidence_preview(confidence: np.ndarray) -> np.ndarray:
+    """H x W confidence in [0, 1] -> H x W x 3 uint8: white where the frame supports the value (or recorded
+    it), through yellow to red where the reconstruction fell back to the frame."""
+    level = np.clip(np.nan_to_num(np.asarray(confidence, np.float32)), 0.0, 1.0)
+    rgb = np.stack([np.ones_like(level), 0.3 + 0.7 * level, level], axis=-1)
+    return np.round(rgb * 255).astype(np.uint8)
+
+
 def radial_profile(psf: np.ndarray) -> np.ndarray:
     """(3, S, S) -> (3, S // 2 + 1): mean over rings of whole-pixel radius about the centre pixel."""
     size = psf.shape[-1]

@@ -1,9 +1,11 @@
-"""``hdrcam reconstruct``: captured LDR frames -> linear HDR EXR (+ unreliable-pixel mask) and PNG previews."""
+"""``hdrcam reconstruct``: captured LDR frames -> linear HDR EXR (+ unreliable-pixel mask and confidence map)
+and PNG previews. The pipeline is :func:`hdrcam.api.reconstruct`; this module reads and writes files."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -29,10 +31,9 @@ def register(commands) -> None:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--no-adaptive", dest="adaptive", action="store_false",
                         help="run the network on every tile, also far from any clipped pixel")
-    parser.add_argument("--no-streak-fit", dest="streak_fit", action="store_false",
-                        help="write the network's output as it is, instead of fitting each clipped blob's "
-                             "brightness to the streaks the frame recorded and taking unclipped pixels from "
-                             "the frame less the highlights' spill")
+    parser.add_argument("--streak-fit", action="store_true",
+                        help="before the consistency check, refit each clipped blob's brightness to the streaks "
+                             "by least squares (off by default: on real photographs it overshoots, see README)")
     parser.add_argument("--tile", type=positive_int, default=DEFAULT_CORE_PX, metavar="PX",
                         help=f"largest tile core (default {DEFAULT_CORE_PX}; bounds memory)")
     parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
@@ -45,8 +46,9 @@ def register(commands) -> None:
     parser.set_defaults(run=run)
 
 
-def output_paths(out: Path, source: Path) -> tuple[Path, Path]:
-    return out / f"{source.stem}.exr", out / f"{source.stem}.png"
+def output_paths(out: Path, source: Path) -> tuple[Path, Path, Path]:
+    """The HDR EXR, its preview and the confidence map's preview of one input."""
+    return out / f"{source.stem}.exr", out / f"{source.stem}.png", out / f"{source.stem}-confidence.png"
 
 
 def run(arguments: argparse.Namespace) -> int:
@@ -54,13 +56,15 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.ldr_frame import read_ldr_frame
     from hdrcam.io.png import write_png
     from hdrcam.optics.psf_file import load_psf
-    from hdrcam.preview import tonemap_rgb
+    from hdrcam.preview import confidence_preview, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
     from hdrcam.progress import Progress
+    from hdrcam.api import reconstruct
+    from hdrcam.recon.consistency import NoiseModel
     from hdrcam.recon.streaks import check_streaks
-    from hdrcam.recon.frame_fit import fit_to_frame
-    from hdrcam.recon.tiling import plan_regions, reconstruct_frame
+    from hdrcam.recon.tiling import plan_regions
+    from hdrcam.train.checkpoint import TrainedModel
     from hdrcam.train.checkpoint import load_model
 
     device = compute_device(arguments.device)
@@ -75,39 +79,45 @@ def run(arguments: argparse.Namespace) -> int:
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
     if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
         network = OnnxNetwork(arguments.checkpoint)
-        network_psf, profile_name, checkpoint = network.psf, network.metadata["hdrcam_profile"], arguments.checkpoint
+        model = TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0,
+                             arguments.checkpoint)
     else:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
-        network, network_psf, profile_name, checkpoint = model.network, model.psf, model.profile, model.source
-    psf = load_psf(arguments.psf) if arguments.psf else network_psf
-    core_radius = load_profile(profile_name).simulation.energy_centre_radius_px
+    psf = load_psf(arguments.psf) if arguments.psf else model.psf
+    profile = load_profile(model.profile)
+    noise = NoiseModel(profile.camera.full_well_e, profile.camera.read_noise_e)
+    core_radius = profile.simulation.energy_centre_radius_px
     frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
-        hdr, report = reconstruct_frame(network, frame, psf_radius_px=psf.shape[-1] // 2,
-                                        adaptive=arguments.adaptive, core_px=arguments.tile,
-                                        halo_px=arguments.halo, device=device, dtype=dtype, progress=progress,
-                                        regions=plan)
-        fit = None
-        if arguments.streak_fit:
-            hdr, fit = fit_to_frame(frame, hdr, psf)
+        result = reconstruct(frame, model, psf=psf, noise=noise, adaptive=arguments.adaptive,
+                             tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
+                             device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():
             warnings.warn(f"{source.name}: {streaks.warning()}")
-        exr_path, png_path = output_paths(arguments.out, source)
-        attributes = {"source": str(source), "checkpoint": str(checkpoint), "units": "relative radiance, 1.0 = "
+        if result.consistency.fallen_back_pixels:
+            print(f"{source.name}: {result.consistency.summary()} (confidence map: "
+                  f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
+        exr_path, png_path, confidence_path = output_paths(arguments.out, source)
+        attributes = {"source": str(source), "checkpoint": str(model.source), "units": "relative radiance, 1.0 = "
                       "sensor white at the capture's exposure", "colour": "camera RGB",
-                      "windows_run": report.windows_run, "windows": report.windows,
-                      "clipped_streak_pixels": streaks.clipped_streak_pixels}
-        pixels = np.concatenate([hdr, streaks.mask[..., None].astype(np.float32)], axis=-1)
-        write_exr(exr_path, pixels, channel_names=("R", "G", "B", "unreliable"), attributes=attributes,
-                  overwrite=arguments.overwrite)
-        write_png(png_path, tonemap_rgb(hdr), overwrite=arguments.overwrite)
+                      "windows_run": result.tiles.windows_run, "windows": result.tiles.windows,
+                      "clipped_streak_pixels": streaks.clipped_streak_pixels,
+                      "fallback_fraction": round(result.fallback_fraction, 4)}
+        pixels = np.concatenate([result.hdr, streaks.mask[..., None].astype(np.float32),
+                                 result.confidence[..., None]], axis=-1)
+        write_exr(exr_path, pixels, channel_names=("R", "G", "B", "unreliable", "confidence"),
+                  attributes=attributes, overwrite=arguments.overwrite)
+        write_png(png_path, tonemap_rgb(result.hdr), overwrite=arguments.overwrite)
+        write_png(confidence_path, confidence_preview(result.confidence), overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
-                          "size": list(frame.shape[:2]), "seconds": round(time.perf_counter() - started, 2),
-                          "work": report.summary(), "streak_fit": fit.summary() if fit else "off",
+                          "confidence": str(confidence_path), "size": list(frame.shape[:2]),
+                          "seconds": round(time.perf_counter() - started, 2), "work": result.tiles.summary(),
+                          "streak_fit": result.streak_fit, "consistency": result.consistency.summary(),
+                          "fallback_fraction": round(result.fallback_fraction, 4),
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     return 0

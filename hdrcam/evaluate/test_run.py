@@ -6,11 +6,10 @@ paper's test protocol). Each scene is captured with the same noise seed for ever
 - ``hdrcnn-blend``: HDR-CNN-style blending (Eilertsen et al.) of the frame with that checkpoint's
   reconstruction, alpha ramping 0 -> 1 as the frame's brightest channel goes 0.95 -> 1: the network is
   trusted only where the frame clipped;
-- one row per checkpoint (its label): the full reconstruction, as ``reconstruct`` writes it: the network's
-  output with each clipped blob's brightness fitted to the recorded streaks
-  (:mod:`hdrcam.recon.highlight_refinement`) and the unclipped pixels taken from the frame less the
-  highlights' spill (:mod:`hdrcam.recon.highlight_spill`);
-- ``LABEL-network``: the network's output alone, without that fit.
+- one row per checkpoint (its label): :func:`hdrcam.api.reconstruct`, the function ``reconstruct`` and
+  ``demo`` call, with its defaults: the network's highlights kept as far as the frame supports them
+  (:mod:`hdrcam.recon.consistency`), the unclipped pixels the frame less the highlights' spill;
+- ``LABEL-network``: the network's output alone, before the frame checked it.
 """
 
 from __future__ import annotations
@@ -20,11 +19,11 @@ import dataclasses
 import numpy as np
 import torch
 
+from hdrcam.api import reconstruct
 from hdrcam.data.saturation import clipped_fraction
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
-from hdrcam.recon.frame_fit import fit_to_frame
 from hdrcam.train.checkpoint import TrainedModel
 from hdrcam.train.optical_capture import OpticalCapture
 
@@ -52,10 +51,6 @@ def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
     return (1.0 - alpha) * ldr + alpha * reconstruction
 
 
-def _to_image(tensor: torch.Tensor) -> np.ndarray:
-    return tensor[0].permute(1, 2, 0).detach().cpu().numpy().astype(np.float32)
-
-
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3,
                     progress=None) -> tuple[list[ScoredImage], list[Example]]:
@@ -77,14 +72,13 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             local = radiance[..., crop:radiance.shape[-2] - crop, crop:radiance.shape[-1] - crop]
             with torch.no_grad():
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
-                network_output = _to_image(model.network(ldr).hdr)
-            frame = _to_image(ldr)
-            reconstruction, _ = fit_to_frame(frame, network_output, capture_psfs[label])
+            frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
+            result = reconstruct(frame, model, psf=capture_psfs[label])
             if label == first:
                 outputs["ldr"] = frame
-                outputs["hdrcnn-blend"] = hdrcnn_blend(frame, reconstruction)
-            outputs[label] = reconstruction
-            outputs[f"{label}-network"] = network_output
+                outputs["hdrcnn-blend"] = hdrcnn_blend(frame, result.network_hdr)
+            outputs[label] = result.hdr
+            outputs[f"{label}-network"] = result.network_hdr
         rows += [ScoredImage(name, method, all_metrics(image, truth), fraction) for method, image in outputs.items()]
         if index < examples:
             shown.append(Example(name, truth, outputs))

@@ -77,14 +77,20 @@ def test_simulate_renders_a_clipped_frame_and_its_truth(night_frame):
     assert np.mean(truth.max(axis=-1) > 1.0) == pytest.approx(0.015, abs=2 / truth[..., 0].size)
 
 
-def test_reconstruct_writes_hdr_mask_and_preview(night_frame, tmp_path, capsys):
+def test_reconstruct_writes_hdr_mask_confidence_and_previews(night_frame, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     result = read_exr(out / "frame.exr")
-    assert set(result.channels) == {"R", "G", "B", "unreliable"} and np.isfinite(result.rgb()).all()
+    assert set(result.channels) == {"R", "G", "B", "unreliable", "confidence"} and np.isfinite(result.rgb()).all()
     assert result.rgb().shape == (96, 160, 3) and (out / "frame.png").is_file()
-    assert "windows" in report["work"]
+    assert (out / "frame-confidence.png").is_file()
+    confidence = result.channels["confidence"]
+    frame = read_exr(night_frame / "frame.exr").rgb()
+    assert confidence.min() >= 0.0 and confidence.max() <= 1.0
+    assert np.all(confidence[frame.max(axis=-1) < 0.99] == 1.0)  # what the frame recorded is never doubted
+    assert "windows" in report["work"] and 0.0 <= report["fallback_fraction"] <= 1.0
+    assert result.attributes["fallback_fraction"] == pytest.approx(report["fallback_fraction"], abs=1e-6)
     before = (out / "frame.exr").read_bytes()
     assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
     _one_line_error(capsys, "already exists")

@@ -1,4 +1,5 @@
-"""Unclipped pixels: the frame less the PSF-spread light of the clipped highlights (an identity of Eq. 1)."""
+"""Unclipped pixels: the frame less the PSF-spread light of the clipped highlights' excess over the clip level
+(an identity of Eq. 1: what remains is the scene with its highlights at the clip level, seen through the PSF)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ def convolve(image: np.ndarray, psf: np.ndarray) -> np.ndarray:
     return fft_convolve(torch.from_numpy(image.transpose(2, 0, 1).copy()), torch.from_numpy(psf)).numpy().transpose(1, 2, 0)
 
 
-def test_with_the_true_highlights_the_unclipped_pixels_are_the_background_seen_through_the_psf():
+def test_with_the_true_highlights_the_unclipped_pixels_are_the_scene_clipped_at_one_seen_through_the_psf():
     psf = star(31, points=8)
     y, x = np.mgrid[:160, :200]
     scene = np.repeat((0.1 + 0.05 * np.sin(x / 5.0))[..., None], 3, axis=-1).astype(np.float32)
@@ -25,7 +26,7 @@ def test_with_the_true_highlights_the_unclipped_pixels_are_the_background_seen_t
     rng = np.random.default_rng(0)
     guess = np.where(clipped[..., None], scene, rng.uniform(0, 5, scene.shape)).astype(np.float32)  # junk outside
     output = subtract_highlight_spill(frame, guess, psf, clipped)
-    background = convolve(np.where(clipped[..., None], 0.0, scene).astype(np.float32), psf)
+    background = convolve(np.where(clipped[..., None], np.minimum(scene, 1.0), scene).astype(np.float32), psf)
     np.testing.assert_allclose(output[~clipped], background[~clipped], atol=5e-5)  # float32 FFT round-off of a 90x highlight
     np.testing.assert_array_equal(output[clipped], scene[clipped])
     far = np.ones_like(clipped)
@@ -62,5 +63,5 @@ def test_clusters_whose_crops_overlap_each_have_their_spill_removed():
     in_both[second] += 1
     assert (in_both > 1).any()
     output = subtract_highlight_spill(frame, scene, psf, clipped)
-    background = convolve(np.where(clipped[..., None], 0.0, scene).astype(np.float32), psf)
+    background = convolve(np.where(clipped[..., None], np.minimum(scene, 1.0), scene).astype(np.float32), psf)
     np.testing.assert_allclose(output[~clipped], background[~clipped], atol=1e-4)  # float32 FFTs of 2^8 lamps
