@@ -18,6 +18,8 @@ from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX, TileReport, clipped_mask, reconstruct_frame
 
+FRAME_RANGE_SLACK = 0.01  # black-level noise and demosaicing overshoot just outside [0, 1] are clipped, not refused
+
 
 @dataclasses.dataclass
 class Reconstruction:
@@ -50,10 +52,11 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     A7's 25,000 e- full well and 4 e- read noise).
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); optionally the
-    streak fit refits each blob's brightness (hdrcam.recon.highlight_refinement); the estimate is then made
-    consistent with the frame - each highlight is kept only in the share its recorded streaks support, never
-    below the clip level (hdrcam.recon.consistency); unclipped pixels are the frame less the kept highlights'
-    spill through the PSF (hdrcam.recon.highlight_spill, Eq. 1).
+    streak fit refits each blob's brightness (hdrcam.recon.highlight_refinement; off by default: it raised
+    highlights past the truth on real photographs); the estimate is then made consistent with the frame -
+    clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
+    exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
+    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 1).
     """
     if model is None:
         from hdrcam.train.checkpoint import load_model
@@ -63,6 +66,12 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     frame = np.ascontiguousarray(frame, np.float32)
     if frame.ndim != 3 or frame.shape[-1] != 3:
         raise ValueError(f"frame must be H x W x 3, got shape {frame.shape}")
+    if not np.isfinite(frame).all():
+        raise ValueError("frame has NaN or Inf pixels: a captured frame holds finite values in [0, 1]")
+    if frame.min() < -FRAME_RANGE_SLACK or frame.max() > 1.0 + FRAME_RANGE_SLACK:
+        raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
+                         "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
+    frame = np.clip(frame, 0.0, 1.0)
     network_hdr, tiles = reconstruct_frame(model.network, frame, psf_radius_px=psf.shape[-1] // 2,
                                            adaptive=adaptive, core_px=tile_px, halo_px=halo_px,
                                            device=torch.device(device), dtype=dtype, progress=progress,

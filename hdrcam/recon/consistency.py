@@ -2,30 +2,37 @@
 
 The frame is y = clip(P * H + eta): on an unclipped pixel it measured the scene convolved with the PSF.
 An estimate proposes, for each cluster of clipped pixels (hdrcam.recon.tiling.clipped_clusters) and each
-colour channel c, an excess E over the clip level on the pixels where channel c clipped. That excess is kept
-only in the proportion the frame supports, a scale s in [0, 1] (s = 0: the captured frame itself there):
+colour channel c, an excess E >= 0 over the clip level on the pixels where channel c clipped. The frame can
+only take that excess down, never up, so the result is never brighter than the proposal:
 
-- Upper bound (never far above what the recorded streaks support). The scene under the streaks is
-  non-negative and a clipped pixel is at least 1, so on every unclipped pixel the re-imaged excess may add at
-  most what the frame recorded beyond the clipped pixels' own light:
-  s (P * E)(x) <= y(x) + K_SIGMA sigma(y(x)) + TOLERANCE - (P * 1_C)(x),
-  sigma from the camera's shot and read noise (relative units, 1 = full well).
-- Evidence (fall back where it is weak). The streak amplitude a is fitted by least squares to the frame on the
-  unclipped pixels within RING_PX of the cluster, y - P * 1_C = a P * E + b0 + b1 row + b2 column (a planar
-  background), and shrunk by its significance z = a / std(a) (residuals taken as TEXTURE_CORRELATION
-  correlated pixels each): a (1 - (Z_MIN / z)^2)+. Streaks the frame does not show clearly (bright smooth
-  surroundings of a highlight barely above the clip level, a camera without a DOE whose lens keeps the light
-  in the highlight) leave the frame as it was.
+- Floor. A clipped channel's radiance is at least the clip level: the estimate there is max(estimate, 1)
+  (a network may say 0.06 where the sensor recorded white); channels that did not clip keep the frame.
+- Upper bound, per unclipped pixel. The scene under the streaks is non-negative and a clipped pixel is at
+  least 1, so the re-imaged excess may add at most what the frame recorded beyond the clipped pixels' own
+  light: (P * E)(x) <= y(x) - (P * 1_C)(x) + K_SIGMA sigma(y(x)) + TOLERANCE, sigma from the camera's shot
+  and read noise (relative units, 1 = full well). Applied locally first, so that a wrong edge does not dim a
+  right core: each clipped pixel's excess is multiplied by the smallest headroom min(1, slack / (P * E))
+  of the unclipped pixels within LOCAL_BOUND_PX of it, LOCAL_BOUND_ITERATIONS rounds; then one scale per
+  cluster and channel makes the bound hold exactly. A cluster whose light reaches fewer than
+  MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has no witness: the frame is kept.
+- Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
+  highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
+  excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with
+  A(v) = v - P * (v 1_U) (U: unclipped), A(y - P * 1_C) = A(P * H_U) + A(P * E) exactly. On the unclipped
+  pixels EVIDENCE_INNER_PX..EVIDENCE_OUTER_PX from the cluster, A(y - P * 1_C) is fitted by
+  a A(P * E_proposed) + b A(P * D) + c, D = the most light the unclipped edge band can hide (y (1/P0 - 1),
+  P0 the PSF's centre value), least squares. The kept share is a, shrunk by its significance z (residual
+  variance, at least the noise's, x TEXTURE_CORRELATION): a (1 - (Z_MIN / z)^2) for z > Z_MIN, else 0 -
+  where the excess's light and the edge's are alike (a weak DOE, a small excess), z is small: fall back.
+- Shape. The frame constrains how much light a blob sends out, not how it is spread inside it: each pixel's
+  excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
+  pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill.
 
-s = min(1, upper bound, evidence): the frame can only take a highlight down, never up, so an estimate is
-never brighter than its own proposal. The streaks measure how much light a blob holds, not how it is spread
-inside it, so last each pixel's excess is capped at SHAPE_CAP times its blob's mean excess (per channel,
-blobs = 8-connected clipped pixels): a network's misplaced peak (values of 50-100 where the truth is 1.5 on
-sky seen through leaves) costs far more linear PSNR than a flatter fill. Clipped channels are at least 1;
-channels that did not clip keep the frame's value. Unclipped pixels are then the frame less the kept highlights' spill
-(:mod:`hdrcam.recon.highlight_spill`), which the upper bound keeps at least -K_SIGMA sigma before clamping.
-
-Measured (12 real validation photographs, tools/results/real-data/): see README, "Do no harm".
+A clipped pixel deep inside a large clipped region sends no light to any unclipped pixel: only the evidence
+of its cluster's edge and the network's prior (trained on real photographs, hdrcam.data.scenes) decide it.
+The confidence map is the share of the proposed excess that was kept (1 where nothing clipped or nothing
+was proposed). Measured against simpler judges (a planar-background streak fit, one scale per cluster, no
+evidence) in tools/results/real-data/README.md.
 """
 
 from __future__ import annotations
@@ -41,11 +48,16 @@ from hdrcam.sensor import fft_convolve
 
 K_SIGMA = 3.0  # noise allowance of the upper bound, in standard deviations
 TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
-RING_PX = 8  # the evidence fit uses unclipped pixels this close to the cluster
+LOCAL_BOUND_PX = 3  # a clipped pixel answers for the unclipped pixels this close (the PSF centre's radius)
+LOCAL_BOUND_ITERATIONS = 3
+EVIDENCE_INNER_PX = 2  # the lens core: a highlight's own edge blurs this far (evidence starts beyond)
+EVIDENCE_OUTER_PX = 10  # the DOE's spill is read up to this far from the cluster
 Z_MIN = 3.0  # a streak amplitude this many standard deviations above zero is kept at (1 - 1/z^2) of its value
-TEXTURE_CORRELATION = 4.0  # neighbouring residuals of a planar background are correlated: variance x this
-MIN_FIT_PIXELS = 8  # fewer unclipped pixels near a cluster: no evidence, the frame is kept
+TEXTURE_CORRELATION = 4.0  # neighbouring residuals are correlated (texture, PSF): variance x this
+MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, the frame is kept
+MIN_WITNESS_PIXELS = 8  # a cluster whose light reaches fewer unclipped pixels has no evidence: the frame is kept
 SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean excess
+FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +78,7 @@ class ConsistencyReport:
     proposed_excess: float  # sum of the estimate's excess over 1 on clipped channels (relative radiance x pixels)
     kept_excess: float
     clipped_pixels: int
-    fallen_back_pixels: int  # clipped pixels whose kept share is below a half in their brightest channel
+    fallen_back_pixels: int  # clipped pixels that kept less than FALLEN_BACK_SHARE of their proposed excess
 
     @property
     def fallback_fraction(self) -> float:
@@ -84,8 +96,8 @@ class ConsistencyReport:
 def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *, noise: NoiseModel = NoiseModel()
                     ) -> tuple[np.ndarray, np.ndarray, ConsistencyReport]:
     """H x W x 3 frame in [0, 1], an H x W x 3 HDR estimate (relative radiance) and the (3, k, k) unit-sum PSF
-    -> (the estimate on clipped pixels with each cluster's excess scaled as the frame supports, the frame
-    elsewhere; H x W confidence in [0, 1]: the kept share on clipped pixels, 1 elsewhere; the report).
+    -> (the estimate on clipped channels, bounded as the module docstring says, the frame elsewhere;
+    H x W confidence in [0, 1]: the kept share on clipped pixels, 1 elsewhere; the report).
 
     Unclipped pixels are returned as the frame: subtract the highlights' spill afterwards."""
     clipped_channels = frame >= CLIP_LEVEL
@@ -97,19 +109,112 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     output = floored.copy()
     proposed = kept = 0.0
-    clusters = clipped_clusters(clipped, psf.shape[-1] // 2)
+    radius = psf.shape[-1] // 2
+    clusters = clipped_clusters(clipped, radius)
     for crop, own in clusters:
         mine = clipped_channels[crop] & own[..., None]
         excess = np.where(mine, floored[crop] - 1.0, 0.0).astype(np.float32)
-        scales = _supported_scales(frame[crop], clipped_channels[crop], own, excess, kernel, noise)
-        output[crop] = np.where(mine, 1.0 + scales * excess, output[crop])
-        share = np.where(mine, scales, 1.0).min(axis=-1)
+        region, inner = _grown(crop, 2 * radius, frame.shape[:2])  # light from two PSF radii away can matter
+        unclipped = ~clipped_channels[region]
+        explained = frame[region] - _convolve(clipped_channels[region].astype(np.float32), kernel)  # y - P 1_C
+        slack = explained[inner] + K_SIGMA * noise.sigma(frame[crop]) + TOLERANCE
+        kept_excess = _bounded_excess(slack, unclipped[inner], excess, kernel)
+        spill = np.zeros_like(explained)
+        spill[inner] = _convolve(kept_excess, kernel)
+        band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
+        kept_excess = kept_excess * _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
+                                                     _beyond_reimaged(spill, unclipped, kernel)[inner],
+                                                     _beyond_reimaged(band, unclipped, kernel)[inner],
+                                                     unclipped[inner], own, noise.sigma(frame[crop]))
+        output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
+        share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
         confidence[crop] = np.where(own, np.minimum(confidence[crop], share), confidence[crop])
         proposed += float(excess.sum())
-        kept += float((scales * excess).sum())
+        kept += float(kept_excess.sum())
     output = _cap_shapes(output, clipped_channels, clipped)
-    fallen_back = int((confidence[clipped] < 0.5).sum())
+    fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back)
+
+
+def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
+    """One cluster's crop (H x W x 3 each) -> its excess lowered where its re-imaged light would exceed the
+    frame's slack, locally first, then exactly (module docstring); nowhere raised."""
+    bounded = excess.copy()
+    window = np.ones((2 * LOCAL_BOUND_PX + 1,) * 2, np.uint8)
+    for _ in range(LOCAL_BOUND_ITERATIONS):
+        headroom = _headroom(slack, unclipped, _convolve(bounded, kernel))
+        for channel in range(3):
+            bounded[..., channel] *= cv2.erode(headroom[..., channel], window, borderType=cv2.BORDER_REPLICATE)
+    spill = _convolve(bounded, kernel)
+    witnesses = (unclipped & (spill > 0)).sum(axis=(0, 1))
+    exact = _headroom(slack, unclipped, spill).min(axis=(0, 1))
+    return bounded * np.where(witnesses >= MIN_WITNESS_PIXELS, exact, 0.0)
+
+
+def _grown(crop: tuple[slice, slice], by_px: int, shape: tuple[int, int]) -> tuple[tuple[slice, slice],
+                                                                                 tuple[slice, slice]]:
+    """``crop`` grown by ``by_px`` within an image of ``shape``, and where ``crop`` lies inside it."""
+    rows, columns = crop
+    top, left = max(rows.start - by_px, 0), max(columns.start - by_px, 0)
+    bottom, right = min(rows.stop + by_px, shape[0]), min(columns.stop + by_px, shape[1])
+    return ((slice(top, bottom), slice(left, right)),
+            (slice(rows.start - top, rows.stop - top), slice(columns.start - left, columns.stop - left)))
+
+
+def _edge_deficit_bound(frame: np.ndarray, clipped_channels: np.ndarray, psf: np.ndarray) -> np.ndarray:
+    """The most light the unclipped pixels within EVIDENCE_INNER_PX of a clipped pixel can hold beyond what
+    they recorded: a highlight's own edge, blurred below the clip level by the lens core. A pixel keeps the
+    share P0 (the PSF's centre value) of its light, so its radiance is at most y / P0: the deficit is at most
+    y (1 / P0 - 1). H x W x 3, zero elsewhere."""
+    centre = psf[:, psf.shape[1] // 2, psf.shape[2] // 2].astype(np.float32)
+    window = np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)
+    near = np.stack([cv2.dilate(clipped_channels[..., c].astype(np.uint8), window) > 0 for c in range(3)], axis=-1)
+    band = near & ~clipped_channels
+    return np.where(band, frame * (1.0 / np.maximum(centre, 1e-3) - 1.0), 0.0).astype(np.float32)
+
+
+def _beyond_reimaged(light: np.ndarray, unclipped: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
+    """A(v) = v - P * (v on unclipped pixels): what a light map holds beyond what re-imaging the frame's own
+    unclipped pixels through the PSF accounts for (the evidence's operator, see _evidence_shares)."""
+    return light - _convolve(np.where(unclipped, light, 0.0).astype(np.float32), kernel)
+
+
+def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.ndarray, unclipped: np.ndarray,
+                     own: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """(3,) shares in [0, 1] of a cluster's excess that the light beyond its lens core supports (module
+    docstring, "Evidence"): ``observed`` = A(y - P 1_C), ``predicted`` = A(P * E), ``nuisance`` = A(P * D),
+    H x W x 3 each on the cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..EVIDENCE_OUTER_PX
+    from ``own`` (the cluster's clipped pixels). ``sigma``: the frame's noise there."""
+    inner = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
+    outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_OUTER_PX + 1,) * 2, np.uint8)) > 0
+    shares = np.ones(3, np.float32)
+    for channel in range(3):
+        ring = outer & ~inner & unclipped[..., channel]
+        signal = predicted[..., channel][ring].astype(np.float64)
+        values = observed[..., channel][ring].astype(np.float64)
+        energy = float(signal @ signal)
+        if energy <= 0.0:
+            continue  # nothing proposed in this channel
+        if ring.sum() < MIN_FIT_PIXELS:
+            shares[channel] = 0.0  # no pixel beyond the lens core saw this highlight: no evidence
+            continue
+        design = np.stack([signal, nuisance[..., channel][ring].astype(np.float64), np.ones_like(signal)], axis=1)
+        coefficients, *_ = np.linalg.lstsq(design, values, rcond=None)
+        amplitude = float(coefficients[0])
+        variance = max(float(np.mean((values - design @ coefficients) ** 2)),
+                       float(np.mean(sigma[..., channel][ring] ** 2)))
+        amplitude_variance = float(np.linalg.pinv(design.T @ design)[0, 0]) * variance * TEXTURE_CORRELATION
+        z = amplitude / np.sqrt(max(amplitude_variance, 1e-30))
+        shares[channel] = min(1.0, amplitude * (1.0 - (Z_MIN / z) ** 2)) if z > Z_MIN else 0.0
+    return shares
+
+
+def _headroom(slack: np.ndarray, unclipped: np.ndarray, spill: np.ndarray) -> np.ndarray:
+    """min(1, slack / spill) on unclipped pixels that the spill reaches, 1 elsewhere."""
+    headroom = np.ones_like(spill)
+    reached = unclipped & (spill > 0)
+    headroom[reached] = np.clip(np.clip(slack[reached], 0.0, None) / spill[reached], 0.0, 1.0)
+    return headroom
 
 
 def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.ndarray) -> np.ndarray:
@@ -130,39 +235,3 @@ def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.
 def _convolve(image: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
     planes = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
     return fft_convolve(planes, kernel).numpy().transpose(1, 2, 0)
-
-
-def _supported_scales(frame: np.ndarray, clipped_channels: np.ndarray, own: np.ndarray, excess: np.ndarray,
-                      kernel: torch.Tensor, noise: NoiseModel) -> np.ndarray:
-    """One cluster's crop -> (3,) scales in [0, 1] of its excess per channel (module docstring)."""
-    spill = _convolve(excess, kernel)  # s = 1
-    floor_light = _convolve(clipped_channels.astype(np.float32), kernel)  # clipped pixels at exactly 1
-    explained = frame - floor_light
-    slack = explained + K_SIGMA * noise.sigma(frame) + TOLERANCE
-    ring = cv2.dilate(own.astype(np.uint8), np.ones((2 * RING_PX + 1,) * 2, np.uint8)) > 0
-    height, width = own.shape
-    rows, columns = np.mgrid[0:height, 0:width].astype(np.float64)
-    rows, columns = rows / max(height, 1), columns / max(width, 1)
-    scales = np.zeros(3, np.float32)
-    for channel in range(3):
-        if not excess[..., channel].any():
-            continue
-        unclipped = ~clipped_channels[..., channel]
-        reach = unclipped & (spill[..., channel] > 0)
-        if not reach.any():
-            continue  # nothing recorded the streaks: no evidence
-        upper = float((np.clip(slack[..., channel][reach], 0.0, None) / spill[..., channel][reach]).min())
-        near = reach & ring
-        if near.sum() < MIN_FIT_PIXELS:
-            continue
-        design = np.stack([spill[..., channel][near], np.ones(int(near.sum())), rows[near], columns[near]], axis=1)
-        observed = explained[..., channel][near].astype(np.float64)
-        coefficients, *_ = np.linalg.lstsq(design, observed, rcond=None)
-        residual = observed - design @ coefficients
-        covariance = np.linalg.pinv(design.T @ design) * max(float(np.mean(residual ** 2)), 1e-12)
-        amplitude = float(coefficients[0])
-        deviation = float(np.sqrt(max(covariance[0, 0] * TEXTURE_CORRELATION, 1e-24)))
-        z = amplitude / deviation
-        supported = amplitude * max(0.0, 1.0 - (Z_MIN / z) ** 2) if z > Z_MIN else 0.0
-        scales[channel] = min(1.0, upper, supported)
-    return scales
