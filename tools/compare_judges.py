@@ -1,0 +1,104 @@
+"""How each way of judging the network's estimate by its frame scores, on held-out scenes.
+
+    .venv/bin/python tools/compare_judges.py --checkpoint C --data runs/data/val --data procedural \
+        [--judge NAME=MODULE.py ...] --out tools/results/real-data/judges.md
+
+Rows: the network alone; the shipped judge (hdrcam.recon.consistency, what ``reconstruct`` does); the same
+without its evidence step (upper bound only); the shipped judge after the optional streak fit; and any
+alternative judge given as a module file defining ``make_consistent`` with the shipped signature (e.g. an
+earlier version from git: ``git show COMMIT:hdrcam/recon/consistency.py > old.py``). Every row goes through
+``hdrcam.evaluate.test_run.evaluate_models`` (the paper's protocol: 512^2 crops, 1.5 % clipped, linear PSNR,
+peak 2^8) with the judge swapped in; columns: mean gain over the LDR capture, the worst scene's gain and how
+many scenes lose more than 0.3 dB, per data set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import hdrcam.api as api
+import hdrcam.evaluate.test_run as test_run
+import hdrcam.recon.consistency as consistency
+from hdrcam.data.scenes import SceneSource
+from hdrcam.train.checkpoint import load_model
+
+SIZE_PX = 512
+PROCEDURAL_COUNT = 16
+HARM_DB = 0.3
+
+
+def _module(path: Path):
+    spec = importlib.util.spec_from_file_location(f"judge_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@contextlib.contextmanager
+def judged_by(make_consistent=None, streak_fit=False, evidence=True):
+    """Swap the judge, the streak fit and the evidence step of hdrcam.api.reconstruct for one block."""
+    saved = api.make_consistent, test_run.reconstruct, consistency._evidence_shares
+    try:
+        if make_consistent is not None:
+            api.make_consistent = make_consistent
+        if streak_fit:
+            test_run.reconstruct = functools.partial(api.reconstruct, streak_fit=True)
+        if not evidence:
+            consistency._evidence_shares = lambda *arguments: np.ones(3, np.float32)
+        yield
+    finally:
+        api.make_consistent, test_run.reconstruct, consistency._evidence_shares = saved
+
+
+def gains(rows, method: str) -> np.ndarray:
+    ldr = {row.image: row.metrics["psnr_linear"] for row in rows if row.method == "ldr"}
+    return np.array([row.metrics["psnr_linear"] - ldr[row.image] for row in rows if row.method == method])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--checkpoint", type=Path, default=None)
+    parser.add_argument("--data", action="append", required=True)
+    parser.add_argument("--judge", action="append", default=[], metavar="NAME=MODULE.py")
+    parser.add_argument("--out", type=Path, required=True)
+    arguments = parser.parse_args(argv)
+    model = load_model(arguments.checkpoint)
+    sources = {data: SceneSource(data) for data in arguments.data}
+    judges = {"shipped judge (reconstruct)": {}, "upper bound only (no evidence step)": {"evidence": False},
+              "streak fit, then the shipped judge": {"streak_fit": True}}
+    for entry in arguments.judge:
+        name, _, path = entry.partition("=")
+        judges[name] = {"make_consistent": _module(Path(path)).make_consistent}
+    results: dict[str, dict[str, np.ndarray]] = {"network alone": {}}
+    for name, options in judges.items():
+        results[name] = {}
+        with judged_by(**options):
+            for data, source in sources.items():
+                count = PROCEDURAL_COUNT if source.folder is None else len(source.folder)
+                rows, _ = test_run.evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count,
+                                                   examples=0)
+                results[name][data] = gains(rows, "hdrcam")
+                results["network alone"].setdefault(data, gains(rows, "hdrcam-network"))
+        print(name, {data: round(float(values.mean()), 2) for data, values in results[name].items()}, flush=True)
+    header = "| judge | " + " | ".join(f"{data}: mean gain (worst), scenes < -{HARM_DB} dB" for data in sources) + " |"
+    lines = [f"Checkpoint {model.source} (step {model.step}); linear PSNR gain over the LDR capture, dB.", "",
+             header, "|---|" + "---|" * len(sources)]
+    for name, per_data in results.items():
+        cells = [f"{v.mean():+.2f} ({v.min():+.2f}), {int((v < -HARM_DB).sum())}" for v in per_data.values()]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    text = "\n".join(lines) + "\n"
+    arguments.out.parent.mkdir(parents=True, exist_ok=True)
+    arguments.out.write_text(text)
+    print(text, end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,77 @@
+"""Per-scene-kind table of ``hdrcam evaluate`` results on catalogued photographs.
+
+    .venv/bin/python tools/scene_kind_table.py --split runs/data/split.csv \
+        --metrics EVAL/metrics.csv [--metrics no-doe=EVAL_DIRAC/metrics.csv] --out TABLE.md
+
+Each --metrics is an evaluate run's metrics.csv; a LABEL= prefix renames that run's checkpoint rows (e.g. the
+same network scored on frames captured through the bare lens, ``evaluate --psf``) and drops its ldr and
+hdrcnn-blend rows, which belong to the first run. Rows: scene kinds (from split.csv, by image stem) and
+'all'; columns: linear PSNR (dB, peak 2^8) per method as the mean gain over LDR, the LDR mean itself, the
+worst photograph's gain and how many photographs lose more than 0.3 dB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+HARM_DB = 0.3  # the generalisation issue's bar: no photograph more than this below its LDR capture
+
+
+def read_runs(entries: list[str]) -> dict[str, dict[str, float]]:
+    """--metrics entries -> {image: {method: psnr_linear}}."""
+    scores: dict[str, dict[str, float]] = defaultdict(dict)
+    for index, entry in enumerate(entries):
+        label, _, path = entry.rpartition("=")
+        with open(path, newline="") as handle:
+            for row in csv.DictReader(handle):
+                method = row["method"]
+                if index and method in ("ldr", "hdrcnn-blend"):
+                    continue
+                if label:
+                    method = method.replace("hdrcam", label, 1) if method.startswith("hdrcam") else f"{label}:{method}"
+                scores[row["image"]][method] = float(row["psnr_linear"])
+    return scores
+
+
+def table(scores: dict[str, dict[str, float]], kinds: dict[str, str]) -> str:
+    methods = [m for m in next(iter(scores.values())) if m != "ldr"]
+    groups = defaultdict(list)
+    for image in scores:
+        groups[kinds.get(image, "unknown")].append(image)
+    lines = ["| scene kind | photos | LDR (dB) | " + " | ".join(f"{m}: gain (worst)" for m in methods)
+             + " | photos > 0.3 dB below LDR (" + methods[methods.index("hdrcam")] + ") |",
+             "|---|---|---|" + "---|" * len(methods) + "---|"]
+    for kind in sorted(groups) + ["all"]:
+        images = list(scores) if kind == "all" else groups[kind]
+        ldr = np.array([scores[i]["ldr"] for i in images])
+        cells = []
+        for method in methods:
+            gain = np.array([scores[i][method] for i in images]) - ldr
+            cells.append(f"{gain.mean():+.2f} ({gain.min():+.2f})")
+        harmed = sum(scores[i]["hdrcam"] - scores[i]["ldr"] < -HARM_DB for i in images)
+        lines.append(f"| {kind} | {len(images)} | {ldr.mean():.2f} | " + " | ".join(cells) + f" | {harmed} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--split", type=Path, required=True, help="split.csv of tools/split_hdr_train.py")
+    parser.add_argument("--metrics", action="append", required=True, help="[LABEL=]metrics.csv (repeatable)")
+    parser.add_argument("--out", type=Path, required=True)
+    arguments = parser.parse_args(argv)
+    with arguments.split.open(newline="") as handle:
+        kinds = {row["file"].rsplit(".", 1)[0]: row["scene_kind"] for row in csv.DictReader(handle)}
+    text = table(read_runs(arguments.metrics), kinds)
+    arguments.out.write_text(text)
+    print(text, end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
