@@ -113,3 +113,74 @@ def test_radiance_hdr_files_are_read(tmp_path):
     read = read_hdr_image(tmp_path / "a.hdr")
     # RGBE shares one exponent per pixel: 8-bit mantissas relative to the brightest channel
     assert np.all(np.abs(read - image) <= image.max(axis=-1, keepdims=True) / 128)
+
+
+def _write_exr(path: Path, rgb: np.ndarray) -> None:
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": rgb.astype(np.float32)}).write(str(path))
+
+
+def test_a_mixture_draws_each_source_in_proportion_to_its_weight(tmp_path):
+    """Two folders whose photographs differ in colour (red or blue lamps on grey): over 1200 training draws of
+    a 2:1 mixture the red share is 2/3 within 4 standard deviations of a binomial count."""
+    for name, channel in (("red", 0), ("blue", 2)):
+        (tmp_path / name).mkdir()
+        image = np.full((64, 64, 3), 0.1, np.float32)
+        image[20:30, 20:30, channel] = 50.0
+        _write_exr(tmp_path / name / "lamp.exr", image)
+    source = SceneSource(f"{tmp_path / 'red'}:2,{tmp_path / 'blue'}:1")
+    rng = np.random.default_rng(0)
+    draws = 1200
+    red = 0
+    for _ in range(draws):
+        scene = source.training_scene(32, 0, rng)
+        red += int(scene[..., 0].max() > scene[..., 2].max())
+    expected, deviation = draws * 2 / 3, np.sqrt(draws * 2 / 3 * 1 / 3)
+    assert abs(red - expected) < 4 * deviation, (red, expected)
+
+
+@pytest.mark.parametrize("specification, message", [("procedural:0", "positive"), ("procedural:-1", "positive"),
+                                                    ("", "SOURCE")])
+def test_a_mixture_with_a_bad_weight_is_refused(specification, message):
+    with pytest.raises(InputError, match=message):
+        SceneSource(specification)
+
+
+def test_a_mixture_takes_procedural_scenes_and_its_test_set_from_the_first_source(tmp_path):
+    _write_exr(tmp_path / "a.exr", np.full((48, 48, 3), 2.0, np.float32) * np.linspace(0.01, 1, 48)[:, None, None])
+    source = SceneSource(f"procedural:1,{tmp_path}:1")
+    assert source.folder is None and len(source.folders) == 2
+    assert [name for name, _ in source.test_scenes(32, 0, 2)] == ["night-000", "night-001"]
+
+
+def test_colour_jitter_keeps_green_and_spans_white_balanced_and_raw_camera_colour():
+    from hdrcam.data.augment import RAW_GAIN_STOPS, WB_JITTER_STOPS, colour_jitter
+
+    rng = np.random.default_rng(1)
+    ones = np.ones((2, 2, 3), np.float32)
+    gains = np.array([colour_jitter(ones, rng)[0, 0] for _ in range(400)])
+    np.testing.assert_array_equal(gains[:, 1], 1.0)
+    stops = np.log2(gains[:, [0, 2]])
+    assert stops.min() >= RAW_GAIN_STOPS[0] - 1e-6 and stops.max() <= RAW_GAIN_STOPS[1] + 1e-6
+    white_balanced = np.all(np.abs(stops) <= 2 * WB_JITTER_STOPS + 1e-6, axis=1)
+    assert 0.45 < white_balanced.mean() < 0.8  # half white-balanced draws, plus raw draws that land near green
+    assert (stops[:, 0] < np.log2(0.4)).any()  # red as weak as an A7's raw red (0.36 of green) is drawn
+
+
+def test_panoramas_are_cropped_from_their_middle_rows_and_other_images_are_not():
+    from hdrcam.data.augment import undistorted_rows
+
+    panorama = np.arange(100 * 200, dtype=np.float32).reshape(100, 200, 1)
+    middle = undistorted_rows(panorama, 20)
+    np.testing.assert_array_equal(middle, panorama[25:75])
+    np.testing.assert_array_equal(undistorted_rows(panorama, 80), panorama[10:90])  # a crop needs 80 rows
+    photograph = np.zeros((100, 150, 1), np.float32)
+    assert undistorted_rows(photograph, 20) is photograph
+
+
+def test_a_luminance_only_exr_is_read_as_grey(tmp_path):
+    luminance = np.random.default_rng(2).uniform(0.1, 20.0, (6, 5)).astype(np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {"Y": luminance}).write(str(tmp_path / "y.exr"))
+    image = read_hdr_image(tmp_path / "y.exr")
+    assert image.shape == (6, 5, 3)
+    for channel in range(3):
+        np.testing.assert_array_equal(image[..., channel], luminance)
