@@ -6,8 +6,9 @@
 Each --metrics is an evaluate run's metrics.csv; a LABEL= prefix renames that run's checkpoint rows (e.g. the
 same network scored on frames captured through the bare lens, ``evaluate --psf``) and drops its ldr and
 hdrcnn-blend rows, which belong to the first run. Rows: scene kinds (from split.csv, by image stem) and
-'all'; columns: linear PSNR (dB, peak 2^8) per method as the mean gain over LDR, the LDR mean itself, the
-worst photograph's gain and how many photographs lose more than 0.3 dB.
+'all'; columns: linear PSNR (dB, peak 2^8) of each method as its mean gain over the FIRST run's LDR capture
+(one reference for every column, so columns compare directly), that LDR mean itself, the worst photograph's
+gain, and how many photographs the first run's ``hdrcam`` leaves more than 0.3 dB below its LDR.
 """
 
 from __future__ import annotations
@@ -31,9 +32,11 @@ def read_runs(entries: list[str]) -> dict[str, dict[str, float]]:
         with open(path, newline="") as handle:
             for row in csv.DictReader(handle):
                 method = row["method"]
-                if index and method in ("ldr", "hdrcnn-blend"):
+                if index and method == "hdrcnn-blend":
                     continue
-                if label:
+                if index and method == "ldr":
+                    method = f"{label or index}:ldr"  # that camera's own capture, e.g. without the DOE
+                elif label:
                     method = method.replace("hdrcam", label, 1) if method.startswith("hdrcam") else f"{label}:{method}"
                 scores[row["image"]][method] = float(row["psnr_linear"])
     return scores

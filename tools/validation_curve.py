@@ -6,8 +6,8 @@
 RUN holds log.jsonl (hdrcam design/finetune); --snapshots holds checkpoints named step-N.pt (copies of
 RUN/checkpoint.pt taken as training went). Every snapshot is scored with ``hdrcam evaluate``'s own function
 (the full pipeline, :func:`hdrcam.api.reconstruct`, and the network alone) on each --data set: mean linear
-PSNR gain over the LDR capture (dB, peak 2^8) and the worst photograph's gain. Writes curves.csv and
-curves.png (training loss smoothed over 100 steps; validation gains per snapshot).
+PSNR gain over the LDR capture (dB, peak 2^8) and the worst photograph's gain. Writes curves.csv (after each
+snapshot; steps already in it are not scored again) and curves.png (training loss smoothed over 100 steps; validation gains per snapshot).
 """
 
 from __future__ import annotations
@@ -52,8 +52,17 @@ def main(argv: list[str] | None = None) -> int:
     snapshots = [p for i, p in enumerate(snapshots) if i % arguments.every == 0 or p == snapshots[-1]]
     arguments.out.mkdir(parents=True, exist_ok=True)
     sources = {data: SceneSource(data) for data in arguments.data}
+    scored = {}
+    if (arguments.out / "curves.csv").exists():  # steps scored by an earlier call are kept, not re-run
+        with (arguments.out / "curves.csv").open(newline="") as handle:
+            scored = {int(row["step"]): {k: (int(v) if k == "step" else float(v)) for k, v in row.items()}
+                      for row in csv.DictReader(handle)}
     records = []
     for snapshot in snapshots:
+        step = int(re.findall(r"\d+", snapshot.stem)[0])
+        if step in scored:
+            records.append(scored[step])
+            continue
         model = load_model(snapshot)
         record = {"step": model.step}
         for data, source in sources.items():
@@ -66,10 +75,10 @@ def main(argv: list[str] | None = None) -> int:
                 record[f"{name}:{method}:worst"] = round(float(np.min(values)), 3)
         records.append(record)
         print(json.dumps(record), flush=True)
-    with (arguments.out / "curves.csv").open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(records[0]))
-        writer.writeheader()
-        writer.writerows(records)
+        with (arguments.out / "curves.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(records[0]))
+            writer.writeheader()
+            writer.writerows(sorted(records, key=lambda r: r["step"]))
     log = [json.loads(line) for line in (arguments.run / "log.jsonl").read_text().splitlines() if line]
     steps = np.array([entry["step"] for entry in log])
     totals = np.cumsum(np.concatenate([[0.0], [entry["total"] for entry in log]]))
