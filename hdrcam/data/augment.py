@@ -1,13 +1,10 @@
 """Augmentations real photographs need beyond the paper's (Sec. 5: saturation scaling, rotations, flips).
 
-- Colour jitter. ``reconstruct`` sees a RAW frame in the camera's own RGB, without white balance: the
-  simulated A7's colour matrix puts sRGB white at (0.36, 1.00, 0.81), and real sensors under daylight are
-  alike (red and blue well below green), under tungsten the other way. A network trained on white-balanced
-  photographs alone meets that as a domain shift (tools/bench_raw_path.py: +0.84 dB on a studio photograph in
-  camera RGB against +3.10 dB in sRGB). So half the draws are white-balanced photographs with each channel's
-  gain within +-WB_JITTER_STOPS (one illuminant's colour is not learned), and half are raw camera colour: red
-  and blue gains drawn log-uniformly in RAW_GAIN_STOPS relative to green. Exposure is jittered by the
-  saturation scaling itself (1-3 % of the pixels clip).
+- White-balance jitter: each channel is multiplied by a gain drawn log-uniformly within +-WB_JITTER_STOPS
+  stops (then divided by the green gain), so the network does not learn one illuminant's colour of a
+  highlight. Exposure is jittered by the saturation scaling itself (1-3 % of the pixels clip). A wider jitter
+  covering raw camera colour (red and blue 2^-1.6..2^0.5 of green) was tried for RAW frames, which reach the
+  network unbalanced: it did not help them (tools/results/real-data/README.md, "Raw camera colour").
 - Equirectangular panoramas (width = 2 x height, the Poly Haven HDRIs) are stretched near their poles:
   crops are taken from the middle half of their rows (:func:`undistorted_rows`), where they look like
   ordinary photographs.
@@ -18,19 +15,14 @@ from __future__ import annotations
 import numpy as np
 
 WB_JITTER_STOPS = 0.25  # +-0.25 stop per channel: the spread of daylight to tungsten after camera white balance
-RAW_GAIN_STOPS = (-1.6, 0.5)  # red and blue relative to green in a camera's raw RGB (A7: 0.36 and 0.81)
-RAW_COLOUR_SHARE = 0.5  # share of draws in raw camera colour
 
 
-def colour_jitter(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """H x W x 3 linear RGB -> the same with per-channel gains (green 1): with probability RAW_COLOUR_SHARE red
-    and blue in 2^RAW_GAIN_STOPS, else each channel within 2^+-WB_JITTER_STOPS of the others."""
-    if rng.random() < RAW_COLOUR_SHARE:
-        stops = np.array([rng.uniform(*RAW_GAIN_STOPS), 0.0, rng.uniform(*RAW_GAIN_STOPS)])
-    else:
-        stops = rng.uniform(-WB_JITTER_STOPS, WB_JITTER_STOPS, size=3)
-        stops -= stops[1]
-    return (image * (2.0 ** stops).astype(np.float32)).astype(np.float32)
+def white_balance_jitter(image: np.ndarray, rng: np.random.Generator,
+                         stops: float = WB_JITTER_STOPS) -> np.ndarray:
+    """H x W x 3 linear RGB -> the same with per-channel gains 2^u, u ~ U(-stops, stops), green gain 1."""
+    gains = 2.0 ** rng.uniform(-stops, stops, size=3)
+    gains /= gains[1]
+    return (image * gains.astype(np.float32)).astype(np.float32)
 
 
 def is_equirectangular(image: np.ndarray) -> bool:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hdrcam.data.augment import colour_jitter, undistorted_rows
+from hdrcam.data.augment import undistorted_rows, white_balance_jitter
 from hdrcam.data.crops import rotate_flip, saturated_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
@@ -62,7 +62,7 @@ class SceneSource:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px)
             image = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
         else:
-            image = colour_jitter(undistorted_rows(folder.images[int(rng.integers(len(folder)))], size_px),
+            image = white_balance_jitter(undistorted_rows(folder.images[int(rng.integers(len(folder)))], size_px),
                                          rng)
         return saturated_crop(image, size_px, rng)
 
