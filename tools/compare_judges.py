@@ -37,6 +37,7 @@ HARM_DB = 0.3
 def _module(path: Path):
     spec = importlib.util.spec_from_file_location(f"judge_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
     spec.loader.exec_module(module)
     return module
 
