@@ -64,18 +64,18 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.consistency import NoiseModel
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
-    from hdrcam.train.checkpoint import TrainedModel
-    from hdrcam.train.checkpoint import load_model
+    from hdrcam.train.checkpoint import TrainedModel, load_model
 
     device = compute_device(arguments.device)
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     if dtype != torch.float32 and device.type != "cuda":
         raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
-    stems = [source.stem for source in arguments.inputs]
-    if len(set(stems)) != len(stems):
-        raise InputError("two inputs share a file name; their outputs would collide")
+    planned: dict[Path, Path] = {}
     for source in arguments.inputs:
         for path in output_paths(arguments.out, source):
+            if path in planned:
+                raise InputError(f"{source} and {planned[path]} would both write {path}; rename one of them")
+            planned[path] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
     if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
         network = OnnxNetwork(arguments.checkpoint)

@@ -238,3 +238,18 @@ def test_damaged_raw_gives_exactly_one_line_on_stderr(tmp_path):
     good = subprocess.run([sys.executable, "-m", "hdrcam", "reconstruct", str(frame), "--out", str(tmp_path / "ok")],
                           capture_output=True, text=True)
     assert good.returncode == 0 and (tmp_path / "ok" / f"{frame.stem}.exr").is_file()
+
+
+def test_reconstruct_refuses_inputs_whose_outputs_collide_before_writing_anything(night_frame, tmp_path, capsys):
+    """'frame' writes frame-confidence.png, and so does an input named 'frame-confidence'; two inputs called
+    'frame' in different folders write the same frame.exr. Both are refused with one line, and nothing is written."""
+    other = tmp_path / "frame-confidence.exr"
+    other.write_bytes((night_frame / "frame.exr").read_bytes())
+    twin = tmp_path / "twin"
+    twin.mkdir()
+    (twin / "frame.exr").write_bytes((night_frame / "frame.exr").read_bytes())
+    for pair in ((night_frame / "frame.exr", other), (night_frame / "frame.exr", twin / "frame.exr")):
+        out = tmp_path / f"out-{pair[1].parent.name}"
+        assert main(["reconstruct", str(pair[0]), str(pair[1]), "--out", str(out)]) == 1
+        _one_line_error(capsys, "would both write")
+        assert not out.exists() or not any(out.iterdir())
