@@ -48,8 +48,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
     :class:`hdrcam.train.checkpoint.TrainedModel` (default: the shipped checkpoint) or any object with
     ``network`` and ``psf``. ``psf``: the (3, k, k) unit-sum PSF the frame was taken through (a calibration's
-    measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: the simulated
-    A7's 25,000 e- full well and 4 e- read noise).
+    measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: that of the
+    model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
+    one).
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); optionally the
     streak fit refits each blob's brightness (hdrcam.recon.highlight_refinement; off by default: it raised
@@ -80,6 +81,16 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     if streak_fit:
         estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
         fit_summary = fit.summary()
-    consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise or NoiseModel())
+    consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise or _profile_noise(model))
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
+
+
+def _profile_noise(model) -> NoiseModel:
+    """The shot and read noise of the camera in the model's capture profile (NoiseModel() without one)."""
+    if not getattr(model, "profile", None):
+        return NoiseModel()
+    from hdrcam.profiles import load_profile
+
+    camera = load_profile(model.profile).camera
+    return NoiseModel(camera.full_well_e, camera.read_noise_e)

@@ -61,7 +61,6 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.export import OnnxNetwork
     from hdrcam.progress import Progress
     from hdrcam.api import reconstruct
-    from hdrcam.recon.consistency import NoiseModel
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
     from hdrcam.train.checkpoint import TrainedModel, load_model
@@ -84,16 +83,14 @@ def run(arguments: argparse.Namespace) -> int:
     else:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
-    profile = load_profile(model.profile)
-    noise = NoiseModel(profile.camera.full_well_e, profile.camera.read_noise_e)
-    core_radius = profile.simulation.energy_centre_radius_px
+    core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
-        result = reconstruct(frame, model, psf=psf, noise=noise, adaptive=arguments.adaptive,
+        result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
