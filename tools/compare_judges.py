@@ -28,6 +28,7 @@ import hdrcam.evaluate.test_run as test_run
 import hdrcam.recon.consistency as consistency
 from hdrcam.data.scenes import SceneSource
 from hdrcam.train.checkpoint import load_model
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 SIZE_PX = 512
 PROCEDURAL_COUNT = 16
@@ -102,4 +103,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run(main))

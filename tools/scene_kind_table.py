@@ -20,6 +20,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 HARM_DB = 0.3  # the generalisation issue's bar: no photograph more than this below its LDR capture
 
@@ -77,4 +78,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run(main))

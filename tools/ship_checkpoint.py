@@ -1,13 +1,15 @@
 """Make a fine-tuned network the shipped checkpoint, carrying the DOE it was trained behind.
 
     .venv/bin/python tools/ship_checkpoint.py runs/real-rank1-fast/model.pt \
-        --doe-from hdrcam/checkpoints/simulated-rank1-fast.pt --out hdrcam/checkpoints/simulated-rank1-fast.pt
+        --doe-from hdrcam/checkpoints/simulated-rank1-fast.pt --out hdrcam/checkpoints/simulated-rank1-fast.pt \
+        --overwrite
 
 ``hdrcam finetune`` trains a network behind a fixed PSF, so its model.pt has no height map. When that PSF is
 the PSF of a designed DOE, the shipped checkpoint should still say which DOE it expects (for ``fabricate``
 and for the record). This copies the ``doe`` entry of --doe-from into the network's checkpoint after checking
 that the two checkpoints hold the same PSF (to 1e-6 per pixel), and keeps everything else of the network's.
-The output is written atomically (hdrcam.train.checkpoint.save_checkpoint); --out may be --doe-from.
+The output is written atomically (hdrcam.train.checkpoint.save_checkpoint); an existing --out (it may be
+--doe-from) is replaced only with --overwrite.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 import torch
 
 from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 PSF_TOLERANCE = 1e-6
 
@@ -28,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("network", type=Path, help="the fine-tuned model.pt")
     parser.add_argument("--doe-from", type=Path, required=True, help="checkpoint holding the designed DOE")
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--overwrite", action="store_true", help="replace --out if it exists (e.g. the shipped one)")
     arguments = parser.parse_args(argv)
     network, design = read_checkpoint(arguments.network), read_checkpoint(arguments.doe_from)
     if design["doe"] is None:
@@ -41,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     state = {key: value for key, value in network.items() if key != "format"}
     state["doe"] = design["doe"]
     state["profile"] = design["profile"]
-    save_checkpoint(arguments.out, state)
+    save_checkpoint(arguments.out, state, overwrite=arguments.overwrite)
     size_mb = arguments.out.stat().st_size / 1e6
     print(f"wrote {arguments.out} ({size_mb:.1f} MB): network of {arguments.network} (step {network['step']}), "
           f"DOE of {arguments.doe_from}")
@@ -50,4 +54,4 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     torch.set_num_threads(1)
-    sys.exit(main())
+    sys.exit(run(main))

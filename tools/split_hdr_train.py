@@ -18,6 +18,7 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 VALIDATION_EVERY = 4  # a quarter of each scene kind, rounded up
 
@@ -69,4 +70,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run(main))

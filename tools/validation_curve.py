@@ -26,6 +26,7 @@ from hdrcam.evaluate.test_run import evaluate_models
 from hdrcam.io.png import write_png
 from hdrcam.preview import line_plot, side_by_side
 from hdrcam.train.checkpoint import load_model
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 SIZE_PX = 512  # the paper's test crop
 PROCEDURAL_COUNT = 16
@@ -96,4 +97,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run(main))
