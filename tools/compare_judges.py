@@ -27,6 +27,7 @@ import hdrcam.api as api
 import hdrcam.evaluate.test_run as test_run
 import hdrcam.recon.consistency as consistency
 from hdrcam.data.scenes import SceneSource
+from hdrcam.evaluate.report import gains_over
 from hdrcam.train.checkpoint import load_model
 from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
@@ -59,11 +60,6 @@ def judged_by(make_consistent=None, streak_fit=False, evidence=True):
         api.make_consistent, test_run.reconstruct, consistency._evidence_shares = saved
 
 
-def gains(rows, method: str) -> np.ndarray:
-    ldr = {row.image: row.metrics["psnr_linear"] for row in rows if row.method == "ldr"}
-    return np.array([row.metrics["psnr_linear"] - ldr[row.image] for row in rows if row.method == method])
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--checkpoint", type=Path, default=None)
@@ -86,8 +82,8 @@ def main(argv: list[str] | None = None) -> int:
                 count = PROCEDURAL_COUNT if source.folder is None else len(source.folder)
                 rows, _ = test_run.evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count,
                                                    examples=0)
-                results[name][data] = gains(rows, "hdrcam")
-                results["network alone"].setdefault(data, gains(rows, "hdrcam-network"))
+                results[name][data] = gains_over(rows, "hdrcam")
+                results["network alone"].setdefault(data, gains_over(rows, "hdrcam-network"))
         print(name, {data: round(float(values.mean()), 2) for data, values in results[name].items()}, flush=True)
     header = "| judge | " + " | ".join(f"{data}: mean gain (worst), scenes < -{HARM_DB} dB" for data in sources) + " |"
     lines = [f"Checkpoint {model.source} (step {model.step}); linear PSNR gain over the LDR capture, dB.", "",

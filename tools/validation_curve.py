@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.data.scenes import SceneSource
+from hdrcam.evaluate.report import gains_over
 from hdrcam.evaluate.test_run import evaluate_models
 from hdrcam.io.png import write_png
 from hdrcam.preview import line_plot, side_by_side
@@ -30,12 +31,6 @@ from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 SIZE_PX = 512  # the paper's test crop
 PROCEDURAL_COUNT = 16
-
-
-def gains(rows, method: str) -> list[float]:
-    """Per-image linear-PSNR gain of ``method`` over the LDR capture."""
-    ldr = {row.image: row.metrics["psnr_linear"] for row in rows if row.method == "ldr"}
-    return [row.metrics["psnr_linear"] - ldr[row.image] for row in rows if row.method == method]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
             rows, _ = evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count, examples=0)
             name = Path(data).name
             for method in ("hdrcam", "hdrcam-network"):
-                values = gains(rows, method)
+                values = gains_over(rows, method)
                 record[f"{name}:{method}:mean"] = round(float(np.mean(values)), 3)
                 record[f"{name}:{method}:worst"] = round(float(np.min(values)), 3)
         records.append(record)

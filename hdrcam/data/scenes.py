@@ -56,6 +56,7 @@ class SceneSource:
         self.folder = self.folders[0]
 
     def _raw_crop(self, size_px: int, rng: np.random.Generator) -> np.ndarray:
+        # one source draws no choice, so single-source runs (Table 2, the shipped design) keep their random streams
         folder = self.folders[int(rng.choice(len(self.folders), p=self.probabilities))] \
             if len(self.folders) > 1 else self.folder
         if folder is None:

@@ -36,6 +36,12 @@ def write_metrics_csv(path: Path, rows: list[ScoredImage], *, overwrite: bool = 
     write_text_atomic(path, buffer.getvalue(), overwrite=overwrite)
 
 
+def gains_over(rows: list[ScoredImage], method: str, reference: str = "ldr") -> np.ndarray:
+    """Per-image linear-PSNR gain (dB) of ``method`` over ``reference``, in the order the images were scored."""
+    base = {row.image: row.metrics["psnr_linear"] for row in rows if row.method == reference}
+    return np.array([row.metrics["psnr_linear"] - base[row.image] for row in rows if row.method == method])
+
+
 def summary_markdown(rows: list[ScoredImage], description: str, reference: str = "ldr") -> str:
     means = method_means(rows)
     images = len(dict.fromkeys(row.image for row in rows))

@@ -118,9 +118,8 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         unclipped = ~clipped_channels[region]
         explained = frame[region] - _convolve(clipped_channels[region].astype(np.float32), kernel)  # y - P 1_C
         slack = explained[inner] + K_SIGMA * noise.sigma(frame[crop]) + TOLERANCE
-        kept_excess = _bounded_excess(slack, unclipped[inner], excess, kernel)
         spill = np.zeros_like(explained)
-        spill[inner] = _convolve(kept_excess, kernel)
+        kept_excess, spill[inner] = _bounded_excess(slack, unclipped[inner], excess, kernel)
         band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
         kept_excess = kept_excess * _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
                                                      _beyond_reimaged(spill, unclipped, kernel)[inner],
@@ -136,9 +135,10 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back)
 
 
-def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
-    """One cluster's crop (H x W x 3 each) -> its excess lowered where its re-imaged light would exceed the
-    frame's slack, locally first, then exactly (module docstring); nowhere raised."""
+def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """One cluster's crop (H x W x 3 each) -> (its excess lowered where its re-imaged light would exceed the
+    frame's slack, locally first, then exactly (module docstring), nowhere raised; that excess's spill P * E)."""
     bounded = excess.copy()
     window = np.ones((2 * LOCAL_BOUND_PX + 1,) * 2, np.uint8)
     for _ in range(LOCAL_BOUND_ITERATIONS):
@@ -147,8 +147,8 @@ def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray
             bounded[..., channel] *= cv2.erode(headroom[..., channel], window, borderType=cv2.BORDER_REPLICATE)
     spill = _convolve(bounded, kernel)
     witnesses = (unclipped & (spill > 0)).sum(axis=(0, 1))
-    exact = _headroom(slack, unclipped, spill).min(axis=(0, 1))
-    return bounded * np.where(witnesses >= MIN_WITNESS_PIXELS, exact, 0.0)
+    scale = np.where(witnesses >= MIN_WITNESS_PIXELS, _headroom(slack, unclipped, spill).min(axis=(0, 1)), 0.0)
+    return bounded * scale, spill * scale  # P * (s E) = s (P * E): no second convolution
 
 
 def _grown(crop: tuple[slice, slice], by_px: int, shape: tuple[int, int]) -> tuple[tuple[slice, slice],

@@ -45,3 +45,15 @@ def test_hdrcnn_blend_ramps_from_095_to_1():
     blended = hdrcnn_blend(ldr, reconstruction)
     assert np.allclose(blended[0, 0], 0.5) and np.allclose(blended[0, 1], ldr[0, 1])
     assert np.allclose(blended[0, 2], 0.5 * ldr[0, 2] + 25.0) and np.allclose(blended[0, 3], 50.0)
+
+
+def test_gains_over_the_reference_are_per_image_differences_in_scoring_order():
+    from hdrcam.evaluate.report import gains_over
+    from hdrcam.evaluate.test_run import ScoredImage
+
+    def row(image, method, psnr):
+        return ScoredImage(image, method, {"psnr_linear": psnr, "pu21_psnr": 0.0, "psnr_mu": 0.0}, 0.015)
+
+    rows = [row("b", "ldr", 40.0), row("b", "hdrcam", 41.5), row("a", "ldr", 30.0), row("a", "hdrcam", 29.0)]
+    np.testing.assert_allclose(gains_over(rows, "hdrcam"), [1.5, -1.0])
+    np.testing.assert_allclose(gains_over(rows, "ldr"), [0.0, 0.0])
