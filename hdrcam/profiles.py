@@ -22,7 +22,7 @@ PROFILE_DIRECTORY = Path(__file__).resolve().parent.parent / "capture_profiles"
 DEFAULT_PROFILE = "sony-a7-zeiss50-rank1"
 CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 DOE_KINDS = ("rank1", "freeform", "none")
-PROPAGATION_MODELS = ("fresnel", "angular_spectrum")
+PROPAGATION_MODELS = ("fresnel", "angular_spectrum", "fraunhofer")
 
 
 @dataclasses.dataclass(frozen=True)

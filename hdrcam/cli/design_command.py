@@ -46,6 +46,9 @@ def register(commands) -> None:
     choice.add_argument("--psf", default=None, metavar="|".join(FIXED_PSFS) + "|FILE",
                         help="a fixed PSF: train the network only (dirac, star8 and dual-peak are imaged "
                              "through the profile's bare lens)")
+    design.add_argument("--init", type=Path, default=None, metavar="CHECKPOINT",
+                        help="start the network from this checkpoint's weights (same preset), e.g. to give every "
+                             "row of Table 2 the same starting network")
     _training_options(design, 1000)
     design.set_defaults(run=run_design)
 
@@ -83,7 +86,10 @@ def run_design(arguments: argparse.Namespace) -> int:
     if arguments.psf and arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
         raise InputError(f"--psf {arguments.psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
     doe = None if arguments.psf else (arguments.doe or "rank1")
-    config = _config(arguments, preset=arguments.preset, profile=arguments.profile, doe=doe, psf=arguments.psf)
+    if arguments.init is not None and not arguments.init.is_file():
+        raise InputError(f"--init {arguments.init} does not exist")
+    config = _config(arguments, preset=arguments.preset, profile=arguments.profile, doe=doe, psf=arguments.psf,
+                     init_checkpoint=str(arguments.init) if arguments.init else None)
     return _train(config, arguments)
 
 

@@ -18,6 +18,7 @@ from hdrcam.io.atomic import check_writable, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.heightmap import heightmap_for_doe, save_heightmap
+from hdrcam.optics.fraunhofer import FRAUNHOFER_SUBPIXELS
 from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.preview import heightmap_rgb, log_psf_rgb, side_by_side
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
@@ -63,9 +64,12 @@ def run(arguments: argparse.Namespace) -> int:
                                       psf_size_px=arguments.psf_size, upsample=arguments.upsample,
                                       allow_aliasing=arguments.allow_aliasing)
     grid = setup.grid
+    sampling = (f"chirp-z on the DOE's {heightmap.feature_pitch_m * 1e6:.3g} um features, {FRAUNHOFER_SUBPIXELS} "
+                f"points per pixel" if grid is None else
+                f"grid {grid.size} x {grid.size} at {grid.pitch_m * 1e6:.3f} um ({grid.upsample} samples per pixel)")
     print(f"profile {profile.name}: DOE {doe_choice}, source at {setup.source_distance_m:g} m, sensor at "
-          f"{setup.sensor_distance_m * 1e3:.3f} mm; grid {grid.size} x {grid.size} at {grid.pitch_m * 1e6:.3f} um "
-          f"({grid.upsample} samples per pixel), {sum(map(len, setup.band_wavelengths_m))} wavelengths, {device}")
+          f"{setup.sensor_distance_m * 1e3:.3f} mm; {sampling}, {sum(map(len, setup.band_wavelengths_m))} "
+          f"wavelengths, {device}")
     started = time.perf_counter()
     simulator = PsfSimulator(setup, heightmap, dtype=dtype).to(device)
     with torch.no_grad():
@@ -83,12 +87,13 @@ def run(arguments: argparse.Namespace) -> int:
         "doe": doe_choice, "seed": arguments.seed, "source_distance_m": setup.source_distance_m,
         "sensor_distance_m": setup.sensor_distance_m, "propagation": setup.propagation,
         "wavelengths_m": [list(band) for band in setup.band_wavelengths_m],
-        "grid_size": grid.size, "grid_pitch_m": grid.pitch_m, "upsample": grid.upsample,
-        "psf_size_px": setup.psf_size_px, "pixel_pitch_m": grid.pixel_pitch_m,
+        **({"subpixels": FRAUNHOFER_SUBPIXELS} if grid is None else
+           {"grid_size": grid.size, "grid_pitch_m": grid.pitch_m, "upsample": grid.upsample}),
+        "psf_size_px": setup.psf_size_px, "pixel_pitch_m": setup.pixel_pitch_m,
         "centre_energy_fraction_rgb": centre.tolist(), "crop_energy_fraction_rgb": crop.tolist(),
         "seconds": round(seconds, 3), "device": str(device), "dtype": arguments.dtype,
     }
-    attributes = {"pixel_pitch_m": grid.pixel_pitch_m, "hdrcam_record": json.dumps(record)}
+    attributes = {"pixel_pitch_m": setup.pixel_pitch_m, "hdrcam_record": json.dumps(record)}
     write_exr(outputs[0], psf.transpose(1, 2, 0), attributes=attributes, overwrite=arguments.overwrite)
     save_heightmap(outputs[1], heights, heightmap.feature_pitch_m, overwrite=arguments.overwrite)
     write_png(outputs[2], side_by_side([log_psf_rgb(psf), heightmap_rgb(heights, profile.doe.h_max_m)]),

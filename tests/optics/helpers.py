@@ -19,7 +19,7 @@ def single_wavelength_setup(*, aperture_m: float, focal_length_m: float, wavelen
     while not is_fast_length(pixels * upsample):
         pixels += 1
     grid = SimulationGrid(pixel_pitch_m=pixel_pitch_m, upsample=upsample, sensor_pixels=max(pixels, psf_size_px))
-    return OpticalSetup(grid=grid, aperture_m=aperture_m, focal_length_m=focal_length_m,
+    return OpticalSetup(grid=grid, pixel_pitch_m=pixel_pitch_m, aperture_m=aperture_m, focal_length_m=focal_length_m,
                         sensor_distance_m=image_distance_m(focal_length_m, focus_distance_m),
                         source_distance_m=source_distance_m, material="fused_silica", propagation=propagation,
                         band_wavelengths_m=((wavelength_m,), (wavelength_m,), (wavelength_m,)),

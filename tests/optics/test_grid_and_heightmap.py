@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -18,7 +19,11 @@ from hdrcam.profiles import load_profile
 
 
 def test_a7_profile_grid_is_unaliased_and_a_pixel_pitch_fraction():
-    setup = OpticalSetup.from_profile(load_profile("sony-a7-zeiss50-rank1"))
+    """The Fresnel grid of the A7 profile (its default is the chirp-z model, which has no lens-phase grid)."""
+    profile = load_profile("sony-a7-zeiss50-rank1")
+    assert profile.simulation.propagation == "fraunhofer" and OpticalSetup.from_profile(profile).grid is None
+    fresnel = dataclasses.replace(profile, simulation=dataclasses.replace(profile.simulation, propagation="fresnel"))
+    setup = OpticalSetup.from_profile(fresnel)
     grid = setup.grid
     assert grid.upsample == 3 and grid.pitch_m == pytest.approx(1.99e-6)
     assert grid.pitch_m <= 450e-9 * 0.05 / 9.16e-3  # D <= lambda f / dx at the shortest wavelength
