@@ -53,7 +53,8 @@ class DoeSpec:
     material: str
     feature_size_m: float
     levels: int
-    h_max_m: float
+    h_max_m: float  # one full wave of phase at design_wavelength_m
+    design_wavelength_m: float
     rank: int
     substrate_thickness_m: float
 
@@ -166,6 +167,22 @@ def resolve_profile_path(name_or_path: str | Path) -> Path:
     raise ProfileError(f"unknown profile {name_or_path!r}; give a .toml path or one of: {', '.join(known)}")
 
 
+def _full_wave(path: Path, doe_table, material: str) -> dict:
+    """h_max_m and design_wavelength_m from whichever one [doe] gives (the other follows from the dispersion)."""
+    from hdrcam.optics.fabrication import design_wavelength_m
+    from hdrcam.optics.materials import full_wave_height_m, refractive_index
+
+    given = [key for key in ("design_wavelength_m", "h_max_m") if key in doe_table.table]
+    if len(given) != 1:
+        raise ProfileError(f"{path}: [doe] give exactly one of design_wavelength_m (h_max = one wave there) and "
+                           f"h_max_m, got {given or 'neither'}")
+    if given[0] == "design_wavelength_m":
+        wavelength = doe_table.number("design_wavelength_m", maximum=2e-6)
+        return {"h_max_m": full_wave_height_m(material, wavelength), "design_wavelength_m": wavelength}
+    h_max = doe_table.number("h_max_m")
+    return {"h_max_m": h_max, "design_wavelength_m": design_wavelength_m(h_max, lambda w: refractive_index(material, w))}
+
+
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
     """Read and validate a capture profile (see capture_profiles/*.toml for the schema by example)."""
     path = resolve_profile_path(name_or_path)
@@ -202,13 +219,15 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
     lens_table.finish()
 
     doe_table = _Section(path, "doe", sections["doe"])
+    kind = doe_table.text("kind", choices=DOE_KINDS)
+    material = doe_table.text("material", choices=("fused_silica",))
     doe = DoeSpec(
-        kind=doe_table.text("kind", choices=DOE_KINDS),
+        kind=kind,
         aperture_m=doe_table.number("aperture_m"),
-        material=doe_table.text("material", choices=("fused_silica",)),
+        material=material,
         feature_size_m=doe_table.number("feature_size_m"),
         levels=doe_table.number("levels", integer=True),
-        h_max_m=doe_table.number("h_max_m"),
+        **_full_wave(path, doe_table, material),
         rank=doe_table.number("rank", integer=True, default=3),
         substrate_thickness_m=doe_table.number("substrate_thickness_m"),
     )

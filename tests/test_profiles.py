@@ -14,7 +14,8 @@ def test_sony_a7_profile_holds_the_papers_prototype():
     assert profile.camera.black_level_dn == 512 and profile.camera.cfa_pattern == "RGGB"
     assert profile.lens.focal_length_m == 0.05 and profile.lens.f_number == 1.4
     assert profile.doe.aperture_m == 9.16e-3 and profile.doe.feature_size_m == 6e-6
-    assert profile.doe.levels == 16 and profile.doe.h_max_m == 1.125e-6 and profile.doe.rank == 3
+    assert profile.doe.levels == 16 and profile.doe.rank == 3
+    assert profile.doe.design_wavelength_m == 550e-9 and profile.doe.h_max_m == pytest.approx(1.1959e-6, rel=1e-4)
     assert profile.calibration.point_source_distance_m == 5.0 and profile.calibration.stops == 5
     assert profile.sensor_distance_m == pytest.approx(1 / (1 / 0.05 - 1 / 5.0))
 
@@ -38,6 +39,9 @@ def _variant(tmp_path, old: str, new: str):
     ("[lens]", "[lense]", r"\[top level\] lense: unknown key"),
     ("psf_size_px = 63", "psf_size_px = 63.5", "expected an integer"),
     ("name = \"simulated\"", "name = [", "not valid TOML"),
+    ("design_wavelength_m = 550e-9", "design_wavelength_m = 550e-9\nh_max_m = 1.2e-6", "exactly one of"),
+    ("design_wavelength_m = 550e-9", "", "exactly one of"),
+    ("design_wavelength_m = 550e-9", "design_wavelength_m = 550", "must be at most"),
 ])
 def test_schema_errors_name_the_key(tmp_path, old, new, message):
     with pytest.raises(ProfileError, match=message):
@@ -47,3 +51,12 @@ def test_schema_errors_name_the_key(tmp_path, old, new, message):
 def test_unknown_profile_lists_the_known_ones():
     with pytest.raises(ProfileError, match="simulated, sony-a7-zeiss50-rank1"):
         load_profile("no-such-camera")
+
+
+def test_h_max_is_one_wave_at_the_design_wavelength_and_back(tmp_path):
+    """lambda / (n(lambda) - 1) with Malitson's fused silica: n(550 nm) = 1.45991 -> 1.1959 um; the paper's
+    1.125 um, given as h_max_m, is one wave at ~519 nm."""
+    assert load_profile("simulated").doe.h_max_m == pytest.approx(550e-9 / 0.459910, rel=1e-5)
+    explicit = load_profile(_variant(tmp_path, "design_wavelength_m = 550e-9", "h_max_m = 1.125e-6"))
+    assert explicit.doe.h_max_m == 1.125e-6
+    assert explicit.doe.design_wavelength_m == pytest.approx(519e-9, abs=1e-9)

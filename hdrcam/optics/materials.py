@@ -15,3 +15,12 @@ def refractive_index(material: str, wavelength_m: float | np.ndarray) -> float |
     wavelength_um2 = (np.asarray(wavelength_m, dtype=np.float64) * 1e6) ** 2
     n_squared = 1.0 + sum(b * wavelength_um2 / (wavelength_um2 - c * c) for b, c in _FUSED_SILICA_SELLMEIER)
     return np.sqrt(n_squared)
+
+
+def full_wave_height_m(material: str, wavelength_m: float) -> float:
+    """Relief height whose phase delay is one full wave (2 pi) at ``wavelength_m``: lambda / (n(lambda) - 1).
+
+    This is the DOE's h_max (paper Sec. 3.2, Eq. 3) at its design wavelength. Fused silica at 550 nm:
+    550 / 0.45991 = 1.1959 um. (The paper quotes 1.125 um "for 550 nm"; that height is one wave at 519 nm.)
+    """
+    return float(wavelength_m / (refractive_index(material, wavelength_m) - 1.0))
