@@ -57,7 +57,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     highlights past the truth on real photographs); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
-    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 1).
+    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6).
     """
     if model is None:
         from hdrcam.train.checkpoint import load_model

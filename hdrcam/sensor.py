@@ -1,4 +1,4 @@
-"""Image formation on the sensor (paper Eq. 8): I_s = clip_[0,1](I * p + eta), then ADC and CFA.
+"""Image formation on the sensor (paper Eq. 6): I_s = clip_[0,1](I * p + eta), then ADC and CFA.
 
 Units: image values are relative exposures, 1.0 = the sensor's full well (the white level above black).
 Noise follows the Poisson-Gaussian model in electrons: shot noise of the collected charge plus Gaussian

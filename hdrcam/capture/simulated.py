@@ -1,6 +1,6 @@
 """``--camera sim``: a simulated Sony A7 that renders a scene through a PSF and the sensor noise model.
 
-Image formation (paper Eq. 8 with a real sensor's details): camera RGB irradiance = PSF * (colour matrix x
+Image formation (paper Eq. 6 with a real sensor's details): camera RGB irradiance = PSF * (colour matrix x
 scene), mosaicked through the CFA; photo-electrons are Poisson, read noise Gaussian, hot pixels add dark
 charge in proportion to the exposure; the ADC adds the black level (512) and clips at the white level
 (14 bit). The shutter lands on the A7's 1/3 EV notches, whose true times (powers of two) differ from their

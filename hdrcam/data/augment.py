@@ -1,4 +1,4 @@
-"""Augmentations real photographs need beyond the paper's (Sec. 5: saturation scaling, rotations, flips).
+"""Augmentations real photographs need beyond the paper's (Sec. 4.3: saturation scaling, rotations, flips).
 
 - White-balance jitter: each channel is multiplied by a gain drawn log-uniformly within +-WB_JITTER_STOPS
   stops (then divided by the green gain), so the network does not learn one illuminant's colour of a

@@ -1,7 +1,7 @@
 """Procedural night scenes: a dim textured background plus emissive sources up to 2^8 (relative radiance).
 
 Relative radiance 1.0 is the level that just fills the sensor at the reference exposure; the paper's
-highlights reach 2^8 (Sec. 5). Sources: street lamps (round, with a brighter core), lit windows,
+highlights reach 2^8 (Sec. 4.3). Sources: street lamps (round, with a brighter core), lit windows,
 LED grids, headlight pairs and lit lettering (shop signs). Everything is drawn from one seed.
 """
 

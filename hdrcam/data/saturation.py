@@ -1,4 +1,4 @@
-"""Exposure scaling of HDR training and test images (paper Sec. 5).
+"""Exposure scaling of HDR training and test images (paper Sec. 4.3).
 
 An image is divided by the (1 - f) quantile of its per-pixel maximum channel, so that exactly a fraction
 f of its pixels exceed 1.0 (the sensor's full well) in at least one channel, then clipped to [0, 2^8].

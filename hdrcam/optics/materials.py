@@ -21,6 +21,7 @@ def full_wave_height_m(material: str, wavelength_m: float) -> float:
     """Relief height whose phase delay is one full wave (2 pi) at ``wavelength_m``: lambda / (n(lambda) - 1).
 
     This is the DOE's h_max (paper Sec. 3.2, Eq. 3) at its design wavelength. Fused silica at 550 nm:
-    550 / 0.45991 = 1.1959 um. (The paper quotes 1.125 um "for 550 nm"; that height is one wave at 519 nm.)
+    550 / 0.45991 = 1.1959 um. (1.125 um, the prototype's h_max as the project recorded it for 550 nm, is one
+    wave at 519 nm.)
     """
     return float(wavelength_m / (refractive_index(material, wavelength_m) - 1.0))

@@ -1,11 +1,11 @@
-"""PSF of the DOE camera: point source -> DOE -> thin lens -> sensor (paper Sec. 3, Eqs. 1-7).
+"""PSF of the DOE camera: point source -> DOE -> thin lens -> sensor (paper Sec. 3, Eqs. 1, 2, 4, 5).
 
 For each wavelength lambda (k = 2 pi / lambda):
   u-  = A0 exp(j k sqrt(r^2 + z^2))                 spherical wave from a point at distance z (Eq. 1)
   u+  = A(x, y) u- exp(j k (n(lambda) - 1) h(x, y))  DOE of height h, circular aperture A (Eq. 2)
-  u_l = u+ exp(j k (f - sqrt(r^2 + f^2)))            thin lens (Eq. 5)
-  u_s = F^-1{ F{u_l} H }                              propagation to the sensor at L (Eq. 6)
-  p   = |u_s|^2                                       (Eq. 7), summed over pixel blocks, averaged per band.
+  u_l = u+ exp(j k (f - sqrt(r^2 + f^2)))            thin lens (Eq. 4)
+  u_s = F^-1{ F{u_l} H }                              propagation to the sensor at L (Eq. 5)
+  p   = |u_s|^2                                       (Eq. 5), summed over pixel blocks, averaged per band.
 
 The sensor sits at L = 1 / (1/f - 1/z_focus), where the profile's focus distance is sharp, so a source at
 another depth is defocused. Model "fresnel" (the paper's) uses the paraxial forms of the source and lens

@@ -1,4 +1,4 @@
-"""Do no harm: an HDR estimate made consistent with the frame it came from (paper Eq. 1 and 6).
+"""Do no harm: an HDR estimate made consistent with the frame it came from (paper Eq. 6).
 
 The frame is y = clip(P * H + eta): on an unclipped pixel it measured the scene convolved with the PSF.
 An estimate proposes, for each cluster of clipped pixels (hdrcam.recon.tiling.clipped_clusters) and each

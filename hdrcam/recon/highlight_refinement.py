@@ -1,7 +1,7 @@
 """Highlight brightness made consistent with the streaks the frame recorded (inference-time physics).
 
 The network paints every clipped blob, but only the streaks tell how bright it was: the frame is the scene
-convolved with the PSF (paper Eq. 1), so a blob's light also lands, through the PSF's tails, on pixels that
+convolved with the PSF (paper Eq. 6), so a blob's light also lands, through the PSF's tails, on pixels that
 did not clip. Each connected clipped blob k gets, per channel, an excess over 1 of a_k phi_k: a mean
 amplitude a_k (relative radiance) times a unit-mean shape phi_k. The amplitudes minimise
 

@@ -1,4 +1,4 @@
-"""Unclipped pixels taken from the frame, less the light the clipped highlights spread onto them (Eq. 1).
+"""Unclipped pixels taken from the frame, less the light the clipped highlights spread onto them (paper Eq. 6).
 
 Where the frame did not clip it measured the scene convolved with the PSF, y = P * H. What a highlight adds
 to its unclipped surroundings beyond what a smooth continuation of them would is the spill of its excess over

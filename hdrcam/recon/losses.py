@@ -1,4 +1,4 @@
-"""Training losses (paper Sec. 4.4, Eqs. 10-15) and the stage targets.
+"""Training losses (paper Sec. 4, Eqs. 10-15) and the stage targets.
 
 Targets, from the true scene radiance I (relative, 1.0 = full well, up to 2^8):
 - I_U* = min(I, 1): what a camera without a DOE and with an infinite dynamic range above black would
@@ -7,7 +7,7 @@ Targets, from the true scene radiance I (relative, 1.0 = full well, up to 2^8):
 So I = I_U* + I_S* - 1 exactly.
 
 L = L_U + L_S + L_F (Eq. 10) + w_E L_energy (the 94 % PSF regulariser, design runs only):
-- L_U = a1 L_feat(I_U, I_U*) + a2 L_excl(I_U, I_r)            (Eq. 11, exclusion loss Eq. 12)
+- L_U = a1 L_feat(I_U, I_U*) + a2 L_excl(I_U, I_r)            (Eq. 11; exclusion loss Eq. 12, Sec. 4.1)
 - L_S = b L_feat(enc(I_S), enc(I_S*)), enc(x) = log2(x) / 8   (I_S in [1, 2^8] -> [0, 1])
 - L_F = Huber((I_hat + eps)^0.5, (I + eps)^0.5)              (Eq. 15)
 L_feat is the VGG-19 perceptual loss on conv2_2, conv3_2 and conv4_2 (``paper`` preset) or, without VGG,

@@ -24,7 +24,7 @@ _LAYOUT = (64, 64, "M", 128, 128, "M", 256, 256, 256, 256, "M", 512, 512, 512, 5
 # index in torchvision's vgg19().features of the ReLU after each named conv
 LAYER_INDEX = {"conv1_2": 3, "conv2_2": 8, "conv3_2": 13, "conv4_2": 22, "conv5_2": 31}
 HYPERCOLUMN_LAYERS = ("conv1_2", "conv2_2", "conv3_2", "conv4_2", "conv5_2")  # paper Sec. 4.1
-PERCEPTUAL_LAYERS = ("conv2_2", "conv3_2", "conv4_2")  # paper Sec. 4.4
+PERCEPTUAL_LAYERS = ("conv2_2", "conv3_2", "conv4_2")  # paper Sec. 4
 HYPERCOLUMN_CHANNELS = 64 + 128 + 256 + 512 + 512
 _MEAN = (0.485, 0.456, 0.406)
 _STD = (0.229, 0.224, 0.225)

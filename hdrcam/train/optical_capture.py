@@ -1,4 +1,4 @@
-"""The simulated camera a network trains through: DOE height map -> PSF -> sensor (paper Eqs. 1-8).
+"""The simulated camera a network trains through: DOE height map -> PSF -> sensor (paper Eqs. 1-6).
 
 Either the DOE is trained (``rank1`` or ``freeform`` height map, PSF from the wave-optics model of the
 profile's optics, recomputed every step so gradients reach the height map), or the PSF is fixed: one of

@@ -1,6 +1,6 @@
 """Do no harm: :func:`hdrcam.api.reconstruct` on adversarial frames made from known HDR scenes.
 
-Every frame is made with the forward model of the paper's Eq. 1, y = clip(P * H + eta, 0, 1): P the shipped
+Every frame is made with the forward model of the paper's Eq. 6, y = clip(P * H + eta, 0, 1): P the shipped
 model's PSF (or the bare lens's, for a camera without a DOE), eta Gaussian shot + read noise of the simulated
 A7 (hdrcam.recon.consistency.NoiseModel, the noise ``reconstruct`` assumes by default) with a fixed seed.
 The reconstruction must never be worse than the frame it came from beyond the noise the frame itself carries:
@@ -156,7 +156,7 @@ def test_b_large_clipped_window_is_floored_bounded_and_removes_no_more_than_its_
     assert np.all(hdr[clipped_channels] >= 1.0) and np.isfinite(hdr).all()
     assert np.all(hdr[clipped_channels] <= np.maximum(result.network_hdr[clipped_channels], 1.0) * (1 + 1e-6))
 
-    # unclipped pixels are the frame less the kept highlights' own spill (the API's definition, Eq. 1) ...
+    # unclipped pixels are the frame less the kept highlights' own spill (the API's definition, Eq. 6) ...
     np.testing.assert_allclose(hdr[~clipped], expected_unclipped(frame, hdr, model.psf)[~clipped], atol=1e-4)
     # ... and not darker than the frame less the window's TRUE spill, P * (H - 1)+, beyond the consistency
     # step's own noise allowance (3 sigma + 0.002): the light removed from a room pixel is at most what the window

@@ -1,5 +1,5 @@
 """Unclipped pixels: the frame less the PSF-spread light of the clipped highlights' excess over the clip level
-(an identity of Eq. 1: what remains is the scene with its highlights at the clip level, seen through the PSF)."""
+(an identity of Eq. 6: what remains is the scene with its highlights at the clip level, seen through the PSF)."""
 
 from __future__ import annotations
 
