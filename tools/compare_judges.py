@@ -27,6 +27,7 @@ import hdrcam.api as api
 import hdrcam.evaluate.test_run as test_run
 import hdrcam.recon.consistency as consistency
 from hdrcam.data.scenes import SceneSource
+from hdrcam.io.atomic import write_text_atomic
 from hdrcam.evaluate.report import gains_over
 from hdrcam.train.checkpoint import load_model
 from one_line_errors import run  # tools/ is on sys.path when a tool runs
@@ -66,7 +67,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", action="append", required=True)
     parser.add_argument("--judge", action="append", default=[], metavar="NAME=MODULE.py")
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out report")
     arguments = parser.parse_args(argv)
+    if arguments.out.exists() and not arguments.overwrite:
+        raise FileExistsError(f"{arguments.out} exists; pass --overwrite to replace it")
     model = load_model(arguments.checkpoint)
     sources = {data: SceneSource(data) for data in arguments.data}
     judges = {"shipped judge (reconstruct)": {}, "upper bound only (no evidence step)": {"evidence": False},
@@ -93,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     text = "\n".join(lines) + "\n"
     arguments.out.parent.mkdir(parents=True, exist_ok=True)
-    arguments.out.write_text(text)
+    write_text_atomic(arguments.out, text, overwrite=arguments.overwrite)
     print(text, end="")
     return 0
 

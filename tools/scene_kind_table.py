@@ -20,6 +20,8 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
+from hdrcam.io.atomic import write_text_atomic
 from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 HARM_DB = 0.3  # the generalisation issue's bar: no photograph more than this below its LDR capture
@@ -68,11 +70,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", type=Path, required=True, help="split.csv of tools/split_hdr_train.py")
     parser.add_argument("--metrics", action="append", required=True, help="[LABEL=]metrics.csv (repeatable)")
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out table")
     arguments = parser.parse_args(argv)
+    if arguments.out.exists() and not arguments.overwrite:
+        raise FileExistsError(f"{arguments.out} exists; pass --overwrite to replace it")
     with arguments.split.open(newline="") as handle:
         kinds = {row["file"].rsplit(".", 1)[0]: row["scene_kind"] for row in csv.DictReader(handle)}
     text = table(read_runs(arguments.metrics), kinds)
-    arguments.out.write_text(text)
+    write_text_atomic(arguments.out, text, overwrite=arguments.overwrite)
     print(text, end="")
     return 0
 
