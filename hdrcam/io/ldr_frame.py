@@ -2,8 +2,8 @@
 
 - RAW (any file LibRaw opens): black level subtracted per CFA position, divided by (clip - black) with
   the clip level measured from the data (the lowest of the CFA positions': a pile-up below the metadata
-  white level maps to 1, so those pixels count as clipped), bilinear demosaic, clipped to [0, 1]. No white balance or colour matrix: the network works in camera RGB, the
-  space in which the PSF is measured.
+  white level maps to 1, so those pixels count as clipped), bilinear demosaic, clipped to [0, 1]. No white
+  balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
 - EXR: linear RGB taken as is (1.0 = white).
 - 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.

@@ -7,9 +7,12 @@ does not report ISO for DNGs, nor the camera's make and model; they are read fro
 CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest can override ISO.
 
 Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
-not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs), and files whose image
-data runs past the end of the file (LibRaw fills a truncated file's missing rows with repeated data and
-reports no error).
+not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs), and truncated files.
+LibRaw fills a truncated file's missing rows by repeating the last row it decoded and reports no error (an
+A7R III ARW cut to half decodes with its last 1787 rows identical), so a TIFF-based file (ARW, NEF, CR2,
+DNG, ...) is refused when its strips or tiles run past the end of the file, and a file of another format
+(CR3, RAF, ...) when its last FILLED_ROWS or more rows repeat one row that is not flat (a sensor's noise never
+repeats a row bit for bit).
 
 Colour (XYZ -> camera, D65): a DNG's own ColorMatrix tags first (the one calibrated for D65, else
 ColorMatrix2, else ColorMatrix1), then LibRaw's table for the model (LibRaw reports zeros for a model it
@@ -36,6 +39,7 @@ _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
 NO_COLOUR_MATRIX = "none (camera RGB)"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
+FILLED_ROWS = 8
 
 
 class NotRawError(InputError):
@@ -134,9 +138,22 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise NotRawError(f"{path}: LibRaw does not open it as RAW ({_libraw_reason(error)})") from None
     except Exception as error:  # LibRaw raises many types for damaged files
         raise InputError(f"{path}: cannot read as RAW ({type(error).__name__}: {_libraw_reason(error)})") from None
+    filled_rows = repeated_tail_rows(bayer) if bayer is not None and not tiff.data_end_bytes else 0
+    if filled_rows >= FILLED_ROWS:
+        raise InputError(f"{path}: truncated or damaged: its last {filled_rows} rows repeat one row (LibRaw fills "
+                         "what a file lacks that way); copy it from the card again")
     if not metadata.exposure_s > 0:
         raise InputError(f"{path}: the file has no exposure time; give the exposures in a bracket.json")
     return metadata, bayer
+
+
+def repeated_tail_rows(bayer_dn: np.ndarray) -> int:
+    """How many rows at the bottom repeat the one above them bit for bit (0 when the last row is flat: a clipped
+    or black row may legitimately repeat)."""
+    if bayer_dn.shape[0] < 2 or bayer_dn[-1].min() == bayer_dn[-1].max():
+        return 0
+    differs = np.flatnonzero(np.any(bayer_dn[1:] != bayer_dn[:-1], axis=1))
+    return bayer_dn.shape[0] - 1 - (int(differs[-1]) + 1 if differs.size else 0)
 
 
 def _libraw_reason(error: Exception) -> str:

@@ -18,9 +18,9 @@ XYZ_TO_CAMERA = np.array([[0.664, -0.1847, -0.0503], [-0.5238, 1.301, 0.2474], [
 XTRANS = ("GGRGGB" "GGBGGR" "BRGRBG" "GGBGGR" "GGRGGB" "RBGBRG")
 
 
-def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator, *, cfa: str = "RGGB",
-              black_dn=(512, 512, 512, 512), clip_dn: float = 13500, white_dn: int = 16383,
-              electrons_per_dn: float = 1.5, read_noise_dn: float = 3.0, scatter_dn: int = 0) -> np.ndarray:
+def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator, *,
+              black_dn=(512, 512, 512, 512), clip_dn: float = 13500, electrons_per_dn: float = 1.5,
+              read_noise_dn: float = 3.0, scatter_dn: int = 0) -> np.ndarray:
     """A Bayer frame in DN: shot noise (Poisson in electrons) and Gaussian read noise on ``radiance`` (DN per
     second above black, H x W), black added per CFA position, clipped at ``clip_dn`` as the sensor does (a
     pile-up), ``scatter_dn`` > 0 scattering clipped samples up to that far above it (lossy compression),
@@ -31,8 +31,9 @@ def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator,
     dn = black + electrons / electrons_per_dn + rng.normal(0.0, read_noise_dn, radiance.shape)
     clipped = dn >= clip_dn
     dn = np.minimum(np.round(dn), clip_dn)
-    if scatter_dn:
-        dn[clipped] += rng.integers(0, scatter_dn // 32 + 1, int(clipped.sum())) * 32 * (rng.random(int(clipped.sum())) < 0.1)
+    if scatter_dn:  # one clipped sample in ten lands 32, 64, ... DN above the pile-up, as in Sony's cRAW
+        count = int(clipped.sum())
+        dn[clipped] += rng.integers(0, scatter_dn // 32 + 1, count) * 32 * (rng.random(count) < 0.1)
     return np.clip(dn, 0, 2 ** 14 - 1).astype(np.uint16)
 
 

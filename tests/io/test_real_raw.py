@@ -50,7 +50,8 @@ def test_the_real_arw_decodes_as_libraw_does(arw):
     meta = frame.metadata
     assert (meta.width_px, meta.height_px, meta.cfa_pattern) == (5184, 3464, "RGGB")
     assert meta.black_level_dn == (512.0,) * 4 and meta.white_level_dn == 16383
-    assert meta.colour_matrix_source == "LibRaw" and abs(np.linalg.det(meta.xyz_to_camera)) > 0.1  # ... its table is not
+    assert meta.colour_matrix_source == "LibRaw"  # ... its table for the model is not
+    assert abs(np.linalg.det(meta.xyz_to_camera)) > 0.1
     assert (meta.make, meta.camera_model, meta.file_format) == ("SONY", "SONY ILCE-7RM3", "ARW")
     assert (meta.exposure_s, meta.iso, meta.f_number) == (0.0015625, 3200.0, 6.3)
     # cRAW: clipped greens and blues pile up at 16372, below the metadata white, scattered up to 16628 above it
@@ -72,6 +73,32 @@ def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw,
     assert err.count("\n") == 1 and "half.ARW" in err and "truncated" in err
     with pytest.raises(InputError, match="truncated"):
         read_ldr_frame(half)  # reconstruct's reader refuses it too (LibRaw alone would fill the missing rows)
+
+
+def test_a_truncated_file_without_tiff_structure_is_caught_by_its_repeated_rows(arw, tmp_path, monkeypatch):
+    """For formats that are not TIFF (CR3, RAF, ...) only the data tells: LibRaw repeats the last decoded row."""
+    import hdrcam.io.raw as raw_module
+
+    def no_tiff_structure(path):
+        return raw_module._TiffFacts(file_bytes=path.stat().st_size)
+
+    monkeypatch.setattr(raw_module, "_tiff_facts", no_tiff_structure)
+    cut = tmp_path / "cut.ARW"
+    cut.write_bytes(arw.read_bytes()[:int(arw.stat().st_size * 0.97)])
+    with pytest.raises(InputError, match="last 107 rows repeat"):
+        read_raw(cut)
+    assert read_raw(arw).bayer_dn.shape == (3464, 5184)  # the whole file has no repeated row
+
+
+def test_repeated_rows_count_only_when_the_row_is_not_flat():
+    from hdrcam.io.raw import repeated_tail_rows
+
+    rows = np.arange(60, dtype=np.uint16).reshape(12, 5)
+    assert repeated_tail_rows(rows) == 0
+    rows[7:] = rows[6]
+    assert repeated_tail_rows(rows) == 5
+    rows[7:] = 16383  # clipped rows may repeat
+    assert repeated_tail_rows(rows) == 0
 
 
 def test_ingest_offers_every_file_to_libraw_whatever_its_suffix(arw, tmp_path):
