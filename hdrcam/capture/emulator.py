@@ -41,6 +41,9 @@ from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE
 from hdrcam.capture.ptp.session import Clock
 from hdrcam.capture.simulated import SimulatedCamera
 
+JPEG_FORMAT = 0x3801  # PTP EXIF/JPEG
+RAW_AND_JPEG_QUALITIES = (0x12, 0x13, 0x14)  # 0x5004: RAW + JPEG standard, fine, extra fine (libgphoto2)
+_FAKE_JPEG = b"\xff\xd8\xff\xe0" + bytes(1020) + b"\xff\xd9"  # a stand-in JPEG: only its format code is read
 BULK_PACKET_BYTES = 512  # USB 2.0 high speed
 INTERRUPT_PACKET_BYTES = 64
 _DATA_OUT_OPERATIONS = {Operation.SONY_SET_CONTROL_DEVICE_A, Operation.SONY_SET_CONTROL_DEVICE_B,
@@ -92,7 +95,7 @@ class Faults:
     focus_mode: int = SONY_FOCUS_MANUAL  # 0x500A: 1 MF, 2 AF-S
     exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
-    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x03 JPEG fine (no RAW)
+    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only
 
 
 class _InPipe:
@@ -155,7 +158,9 @@ class EmulatedSonyA7:
         self._steps: list[tuple[float, int, int]] = []  # (due time, property, notches)
         self._step_count = 0
         self._buttons = {Property.SONY_HALF_PRESS: 1, Property.SONY_FULL_PRESS: 1}
-        self._image: bytes | None = None
+        self._image: bytes | None = None  # the object 0xFFFFC001 holds now
+        self._image_format, self._image_name = SONY_RAW_FORMAT, ""
+        self._queued_images: list[tuple[bytes, int, str]] = []  # (bytes, format, name) after it: RAW+JPEG
         self._image_due_s: float | None = None
         self._image_number = 0
         self._downloading = False
@@ -208,6 +213,8 @@ class EmulatedSonyA7:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         if self._downloading and not self.in_pipe.transfers:  # the whole image and its response went out
             self._downloading, self._image = False, None
+            if self._queued_images:
+                self._image, self._image_format, self._image_name = self._queued_images.pop(0)
             self.downloads += 1
             if self.faults.stale_object_added:
                 self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
@@ -341,9 +348,9 @@ class EmulatedSonyA7:
         if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or not self._image_ready():
             self.premature_requests += 1
             return Response.INVALID_OBJECT_HANDLE
-        info = ObjectInfo(0x00010001, SONY_RAW_FORMAT, 0, len(self._image), 0, 0, 0, 0,
+        info = ObjectInfo(0x00010001, self._image_format, 0, len(self._image), 0, 0, 0, 0,
                           self.camera.scene.width_px, self.camera.scene.height_px, 16, 0, 0, 0, 0,
-                          f"DSC{self._image_number:05d}.DNG", "", "", "")
+                          self._image_name, "", "", "")
         return info.pack(), Response.OK
 
     def _op_1009(self, request, payload):  # GetObject: the image leaves memory once all of it was read
@@ -363,7 +370,12 @@ class EmulatedSonyA7:
         image = camera.frame_bytes(bayer, settings, timestamp)
         if self.faults.whole_packet_images:  # trailing zeros after a TIFF's last IFD and strip are ignored
             image += bytes(-(len(image) + 12) % BULK_PACKET_BYTES)
-        self._image = image
+        raw = (image, SONY_RAW_FORMAT, f"DSC{self._image_number:05d}.DNG")
+        if self.faults.image_quality in RAW_AND_JPEG_QUALITIES:  # assumption: the JPEG of the pair comes first
+            self._image, self._image_format = _FAKE_JPEG, JPEG_FORMAT
+            self._image_name, self._queued_images = f"DSC{self._image_number:05d}.JPG", [raw]
+        else:
+            self._image, self._image_format, self._image_name = raw
         exposure_end_s = self.clock.monotonic() + camera.true_exposure_s()
         self._image_due_s = exposure_end_s + self.latencies.image_ready_s
         if self.faults.early_object_added:

@@ -13,7 +13,8 @@ still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 
 timeout; full press, release both; then wait until 0xD215 >= 0x8000 says the image is ready - events
 (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
 camera answer GetObjectInfo with InvalidObjectHandle, and premature access can crash the firmware. Then
-GetObjectInfo and GetObject on 0xFFFFC001. All vendor quirks live here; the generic PTP layer knows nothing
+GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the
+next one awaited the same way. All vendor quirks live here; the generic PTP layer knows nothing
 of Sony.
 """
 
@@ -32,8 +33,8 @@ from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, Ex
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, nearest_iso, nearest_shutter, shutter_from_ptp
 from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
-                                      SONY_PROTOCOL_MODE_2, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
-                                      SONY_VENDOR_EXTENSION_ID, Operation, Property)
+                                      SONY_PROTOCOL_MODE_2, SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG,
+                                      SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, Operation, Property)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession
 from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport, is_ptp_interface
@@ -47,6 +48,7 @@ FOCUS_TIMEOUT_S = 5.0  # from the half press, in AF modes
 FOCUS_POLL_INTERVAL_S = 0.05
 SDIO_INFO_ATTEMPTS = 10  # an empty 0x9202 answer is asked again this many times, SDIO_RETRY_S apart
 SDIO_RETRY_S = 0.2
+OBJECTS_PER_SHOT = 3  # RAW + JPEG gives two
 STALE_EVENTS_MAX = 64  # events drained at the start of a shot, at most
 USB_BACKEND_VARIABLE = "HDRCAM_USB_BACKEND"
 _PRESS, _RELEASE = 2, 1
@@ -287,13 +289,24 @@ class SonyA7Camera:
         self._press(Property.SONY_HALF_PRESS, _RELEASE)
         timestamp = dt.datetime.now().replace(microsecond=0)
         self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s)
-        info = session.object_info(SONY_IN_MEMORY_OBJECT)
-        content = session.get_object(SONY_IN_MEMORY_OBJECT)
-        if len(content) != info.compressed_size:
-            raise CameraError(f"downloaded {len(content)} bytes of {info.filename}, expected {info.compressed_size}")
+        info, content = self._download_raw(CAPTURE_TIMEOUT_S)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
+
+    def _download_raw(self, timeout_s: float):
+        """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped."""
+        for _ in range(OBJECTS_PER_SHOT):
+            info = self.session.object_info(SONY_IN_MEMORY_OBJECT)
+            content = self.session.get_object(SONY_IN_MEMORY_OBJECT)
+            if len(content) != info.compressed_size:
+                raise CameraError(f"downloaded {len(content)} bytes of {info.filename}, expected "
+                                  f"{info.compressed_size}")
+            if info.object_format == SONY_RAW_FORMAT:
+                return info, content
+            self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
+            self._wait_for_image(timeout_s)
+        raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
 
     def _press(self, button: int, state: int) -> None:
         self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, button, data_out=struct.pack("<H", state))

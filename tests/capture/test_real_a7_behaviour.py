@@ -69,6 +69,15 @@ def test_a_stalled_download_is_cleared_and_retried_a_bounded_number_of_times(tmp
             assert not list(tmp_path.iterdir())
 
 
+def test_raw_plus_jpeg_keeps_the_raw_and_drops_the_jpeg(tmp_path):
+    camera, body = emulated(image_quality=0x13)
+    with camera:
+        frames = [camera.capture(tmp_path, f"f{k}") for k in range(2)]
+        assert sum("dropped DSC" in line and ".JPG" in line for line in camera.session.log) == 2
+    assert [frame.path.suffix for frame in frames] == [".dng", ".dng"] and body.downloads == 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f0.dng", "f1.dng"] and body.premature_requests == 0
+
+
 def test_images_of_whole_packets_end_with_a_zlp_and_download_intact(tmp_path):
     camera, body = emulated(whole_packet_images=True)
     with camera:
