@@ -121,6 +121,17 @@ def test_a_pile_up_below_white_is_the_clip_level_and_scatter_above_it_counts_as_
     assert read_ldr_frame(path)[:, 50:].min() == 1.0  # clipped in reconstruct's eyes (was 0.82 of white)
 
 
+@pytest.mark.parametrize("make, black, clip, white", [("Canon", 2048, 13584, 15000), ("Nikon", 0, 3880, 4095),
+                                                      ("Pentax", 64, 16300, 16383)])
+def test_other_makes_levels_and_pile_ups(tmp_path, make, black, clip, white):
+    """Canon-like high black and a white level above the pile-up, a 12-bit body, a pile-up just under white."""
+    radiance = _scene() * (clip - black) / 1.0e4
+    bayer = sensor_dn(radiance, 0.01, np.random.default_rng(9), black_dn=(black,) * 4, clip_dn=clip)
+    frame = read_raw(write_dng(tmp_path / "f.dng", bayer, black_dn=(black,) * 4, white_dn=white, make=make))
+    assert np.all(frame.clip_level_tile_dn == clip) and frame.metadata.white_level_dn == white
+    assert frame.metadata.camera_model.startswith(make) and read_ldr_frame(frame.metadata.path)[:, 50:].min() == 1.0
+
+
 def test_no_pile_up_means_the_metadata_white_level():
     rng = np.random.default_rng(2)
     ramp = np.linspace(512, 16300, 200_000) + rng.normal(0, 40, 200_000)  # a smooth bright area near white
