@@ -11,11 +11,14 @@ CAMERA_KINDS = ("sim", "sim-usb", "usb")
 
 
 def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=None, seed: int = 0,
-                faults=None, **simulation) -> tuple[Camera, SimulatedCamera | None]:
+                faults=None, latencies=None, **simulation) -> tuple[Camera, SimulatedCamera | None]:
     """A camera ready to be entered (``with camera:``) and, for sim and sim-usb, the simulation behind it.
 
     ``sim`` and ``sim-usb`` need the ``scene`` and ``psf`` they image; ``faults`` (emulator.Faults) make the
-    emulated camera misbehave; ``simulation`` goes to SimulatedCamera (hot pixels, exposure error, ...).
+    emulated camera misbehave and ``latencies`` (emulator.Latencies) time it; ``simulation`` goes to
+    SimulatedCamera (hot pixels, exposure error, ...). ``usb`` finds the camera on the backend that
+    HDRCAM_USB_BACKEND names (module:callable), else on libusb; ``sim-usb`` puts the emulated A7 on a pyusb
+    backend the same way.
     """
     if kind == "usb":
         from hdrcam.capture.sony import SonyA7Camera
@@ -29,7 +32,7 @@ def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=
     from hdrcam.capture.emulator import EmulatedSonyA7, EmulatedUsbBackend
     from hdrcam.capture.sony import SonyA7Camera, find_sony_camera
 
-    emulated = EmulatedSonyA7(simulated, faults=faults)
+    emulated = EmulatedSonyA7(simulated, faults=faults, latencies=latencies)
     backend = EmulatedUsbBackend(emulated)
     camera = SonyA7Camera(find_sony_camera(backend), clock=emulated.clock,
                           cover_lens=lambda covered: setattr(emulated, "lens_covered", covered))

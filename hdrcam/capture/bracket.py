@@ -9,6 +9,7 @@ Frames are written atomically; the manifest is written even when a capture fails
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -76,7 +77,11 @@ class BracketCapture:
         manifest = self.folder / MANIFEST_NAME
         if manifest.exists():
             raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out")
-        bracket = Bracket(kind=kind, camera={"backend": self.backend, "model": self.camera.model},
+        details = self.camera.details() if hasattr(self.camera, "details") else {}  # focus, drive, firmware
+        if kind == "light" and details.get("focus_mode") not in (None, "MF"):
+            warnings.warn(f"focus mode is {details['focus_mode']}: the camera focuses again for every frame, so a "
+                          "calibration bracket may mix focus positions; focus once and set the lens to MF")
+        bracket = Bracket(kind=kind, camera={"backend": self.backend, "model": self.camera.model, **details},
                           profile=self.profile, frames=[], options=dict(self.options, plan=dataclasses.asdict(plan)))
         try:
             if plan.iso is not None:

@@ -1,13 +1,19 @@
 """``--camera sim-usb``: an emulated Sony A7 that speaks PTP over a pyusb backend (usb.backend.IBackend).
 
 The real ``usb`` code path - device discovery, descriptors, endpoints, containers and ZLPs, the Sony
-handshake, notch stepping, capture and download - runs against it unchanged. Frames come from a
-``SimulatedCamera``, so the same seed gives the same RAW data as ``--camera sim``. Time is virtual: a step
-lands 0.7 s after it is asked for and an image is ready after its exposure plus 0.4 s, counted on a clock
-that advances when the host sleeps or a read times out, so tests run fast and deterministically.
+handshake, notch stepping, focus, capture and download - runs against it unchanged. Its behaviour follows
+libgphoto2 (camlibs/ptp2: camera_sony_capture, ptp_sony_*, ptp_unpack_Sony_DPD), not hdrcam's client:
+FocusFound (0xD213) turns 2 some time after a half press in AF modes; the image is announced by 0xD215 >=
+0x8000 once it is ready, and asking for it earlier is answered InvalidObjectHandle (and counted: libgphoto2
+warns that premature access can crash a real body). Frames come from a ``SimulatedCamera``, so the same seed
+gives the same RAW data as ``--camera sim``. ``Latencies`` hold the timings; by default they model an A7
+and time is virtual (a clock that advances when the host sleeps or a read times out), so tests run fast and
+deterministically; with a real clock (e.g. behind HDRCAM_USB_BACKEND) scale them down.
 
-``Faults`` make the camera misbehave on purpose: DeviceBusy answers, a response that never comes,
-a disconnect in the middle of a download, a response for the wrong transaction, steps that overshoot.
+``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response
+that never comes, a disconnect in the middle of a download, a response for the wrong transaction, steps that
+overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, images of whole USB packets (ZLPs),
+properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
 The emulator serves DNG files (format code 0xB101 like the A7's ARW).
 """
 
@@ -24,17 +30,20 @@ import usb.backend
 import usb.core
 
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES
-from hdrcam.capture.ptp.codes import (SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_RAW_FORMAT,
-                                      SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID,
-                                      ClassRequest, ContainerType, DataType, Event, Operation, Property, Response)
+from hdrcam.capture.notches import ISO_AUTO
+from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
+                                      SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
+                                      SONY_RAW_FORMAT, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, ClassRequest,
+                                      ContainerType, DataType, Event, Operation, Property, Response)
 from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
-from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, DeviceInfo, ObjectInfo, PropertyDescriptor,
-                                         pack_sony_properties)
+from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
+                                         PropertyDescriptor, pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
 from hdrcam.capture.simulated import SimulatedCamera
 
-STEP_LATENCY_S = 0.7
-PROCESSING_S = 0.4
+JPEG_FORMAT = 0x3801  # PTP EXIF/JPEG
+RAW_AND_JPEG_QUALITIES = (0x12, 0x13, 0x14)  # 0x5004: RAW + JPEG standard, fine, extra fine (libgphoto2)
+_FAKE_JPEG = b"\xff\xd8\xff\xe0" + bytes(1020) + b"\xff\xd9"  # a stand-in JPEG: only its format code is read
 BULK_PACKET_BYTES = 512  # USB 2.0 high speed
 INTERRUPT_PACKET_BYTES = 64
 _DATA_OUT_OPERATIONS = {Operation.SONY_SET_CONTROL_DEVICE_A, Operation.SONY_SET_CONTROL_DEVICE_B,
@@ -54,15 +63,39 @@ class VirtualClock(Clock):
         self.now_s += max(seconds, 0.0)
 
 
+@dataclasses.dataclass(frozen=True)
+class Latencies:
+    """How long the emulated body takes, in seconds of its clock."""
+
+    step_s: float = 0.7  # a notch lands ~0.7 s after 0x9207 (REFERENCE.md sec. 4, measured on A7s by others)
+    image_ready_s: float = 0.4  # after the exposure ends; an assumption (RAW processing time varies by body)
+    focus_s: float = 0.3  # from the half press to FocusFound in AF-S; an assumption (lens and light dependent)
+
+    def scaled(self, factor: float) -> "Latencies":
+        return Latencies(*(value * factor for value in dataclasses.astuple(self)))
+
+
 @dataclasses.dataclass
 class Faults:
-    """Misbehaviour to inject; each counter is consumed as the fault fires."""
+    """Misbehaviour to inject (and how the body is set up); each counter is consumed as the fault fires."""
 
     busy: int = 0  # answer the next N operations (after the handshake) with DeviceBusy
     silent_operation: int | None = None  # never answer the next command with this code
     disconnect_during_download: bool = False  # unplug after the first chunk of the next GetObject
+    disconnect_after_downloads: int | None = None  # unplug mid-download once this many images were downloaded
     wrong_transaction_operation: int | None = None  # answer the next command with this code for another transaction
     overshoot_every: int = 0  # every Nth notch step moves two notches
+    stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
+    early_object_added: bool = False  # ObjectAdded when the exposure ends, before 0xD215 says the image is ready
+    stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
+    whole_packet_images: bool = False  # pad images so their data container is whole packets (a ZLP ends it)
+    odd_property_types: bool = False  # 0x9209 also lists properties of array, 128-bit and string types
+    empty_sdio_answers: int = 0  # answer the first N GetSDIOGetExtDeviceInfo with no data
+    never_focus: bool = False  # in AF modes FocusFound never turns 2
+    focus_mode: int = SONY_FOCUS_MANUAL  # 0x500A: 1 MF, 2 AF-S
+    exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
+    iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
+    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only
 
 
 class _InPipe:
@@ -101,10 +134,16 @@ class _InPipe:
 class EmulatedSonyA7:
     """The camera side of PTP: a Sony A7 in PC-remote mode (protocol mode 2)."""
 
-    def __init__(self, camera: SimulatedCamera, *, clock: VirtualClock | None = None, faults: Faults | None = None):
+    def __init__(self, camera: SimulatedCamera, *, clock: Clock | None = None, faults: Faults | None = None,
+                 latencies: Latencies | None = None):
         self.camera = camera
         self.clock = clock or VirtualClock()
         self.faults = faults or Faults()
+        self.latencies = latencies or Latencies()
+        self.shots: list[dict] = []  # per full press: {"focused": bool, "exposure_s": float}
+        self.premature_requests = 0  # GetObjectInfo/GetObject before 0xD215 announced the image
+        self.halted = False  # bulk-in stalled until the host clears the halt
+        self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
         self.events: collections.deque[bytes] = collections.deque()
         self.connected = True
@@ -119,10 +158,14 @@ class EmulatedSonyA7:
         self._steps: list[tuple[float, int, int]] = []  # (due time, property, notches)
         self._step_count = 0
         self._buttons = {Property.SONY_HALF_PRESS: 1, Property.SONY_FULL_PRESS: 1}
-        self._image: bytes | None = None
+        self._image: bytes | None = None  # the object 0xFFFFC001 holds now
+        self._image_format, self._image_name = SONY_RAW_FORMAT, ""
+        self._queued_images: list[tuple[bytes, int, str]] = []  # (bytes, format, name) after it: RAW+JPEG
         self._image_due_s: float | None = None
         self._image_number = 0
         self._downloading = False
+        self._half_pressed_at: float | None = None
+        self._early_event_s: float | None = None
         self.in_pipe.clear()
 
     # -- USB side --------------------------------------------------------------------------------------------
@@ -154,13 +197,31 @@ class EmulatedSonyA7:
     def bulk_in(self, buffer) -> int:
         self._require_connected()
         self._advance()
+        if self.halted:
+            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         count = self.in_pipe.read_into(buffer)
         if count is None:
             raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
-        if self._downloading and self.faults.disconnect_during_download:
-            self.faults.disconnect_during_download = False
+        if self._downloading and (self.faults.disconnect_during_download
+                                  or self.faults.disconnect_after_downloads == self.downloads):
+            self.faults.disconnect_during_download, self.faults.disconnect_after_downloads = False, None
             self.connected = False
+        elif self._downloading and self.faults.stalls_during_download and self.in_pipe.transfers:
+            self.faults.stalls_during_download -= 1
+            self.in_pipe.clear()  # the rest of the transfer is lost; the image stays in memory
+            self._downloading, self.halted = False, True
+            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
+        if self._downloading and not self.in_pipe.transfers:  # the whole image and its response went out
+            self._downloading, self._image = False, None
+            if self._queued_images:
+                self._image, self._image_format, self._image_name = self._queued_images.pop(0)
+            self.downloads += 1
+            if self.faults.stale_object_added:
+                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         return count
+
+    def clear_halt(self) -> None:
+        self.halted = False
 
     def interrupt_in(self, buffer) -> int:
         self._require_connected()
@@ -175,7 +236,7 @@ class EmulatedSonyA7:
         self._require_connected()
         if request == ClassRequest.CANCEL:
             self.in_pipe.clear()
-            self._awaiting_data, self._out_transfer = None, bytearray()
+            self._awaiting_data, self._out_transfer, self._downloading = None, bytearray(), False
             return b""
         if request == ClassRequest.DEVICE_RESET:
             self._reset_state()
@@ -231,7 +292,7 @@ class EmulatedSonyA7:
     def _op_1001(self, request, payload):  # GetDeviceInfo
         info = DeviceInfo(100, SONY_VENDOR_EXTENSION_ID, 100, "Sony PTP Extensions", 0,
                           tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
-                          (SONY_RAW_FORMAT,), "Sony Corporation", "ILCE-7", "1.00", f"{self.camera.seed:08d}")
+                          (SONY_RAW_FORMAT,), "Sony Corporation", "ILCE-7", "3.20", f"{self.camera.seed:08d}")
         return info.pack(), Response.OK
 
     def _op_9201(self, request, payload):  # SDIOConnect phases 1, 2, 3
@@ -240,6 +301,9 @@ class EmulatedSonyA7:
         return Response.OK
 
     def _op_9202(self, request, payload):  # GetSDIOGetExtDeviceInfo -> protocol version, then codes
+        if self.faults.empty_sdio_answers:  # a body still starting PC-remote mode answers OK with no data
+            self.faults.empty_sdio_answers -= 1
+            return b"", Response.OK
         codes = [int(c) for c in (*Operation, *Event, *Property)]
         return struct.pack(f"<H{len(codes)}H", 0xC8, *codes), Response.OK
 
@@ -258,32 +322,43 @@ class EmulatedSonyA7:
             notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
             if code == Property.SONY_SHUTTER_SPEED:
                 delta = -delta  # the A7 counts shutter notches towards longer times
-            self._steps.append((self.clock.monotonic() + STEP_LATENCY_S, code, delta * notches))
+            self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta * notches))
             return Response.OK
         if code in self._buttons:
             if len(payload) != 2:
                 return Response.PARAMETER_NOT_SUPPORTED
             state = struct.unpack("<H", payload)[0]
+            if code == Property.SONY_HALF_PRESS:
+                self._half_pressed_at = self.clock.monotonic() if state == 2 else None
+            if code == Property.SONY_FULL_PRESS and state == 2 and self._buttons[code] != 2:
+                self.shots.append({"focused": self._focus_found() == SONY_FOCUS_FOUND
+                                   or self.faults.focus_mode == SONY_FOCUS_MANUAL,
+                                   "exposure_s": self.camera.true_exposure_s()})
             if code == Property.SONY_FULL_PRESS and state == 1 and self._buttons[code] == 2:
                 self._expose()
             self._buttons[code] = state
             return Response.OK
         return Response.DEVICE_PROP_NOT_SUPPORTED
 
+    def _image_ready(self) -> bool:
+        self._advance()
+        return self._image is not None and self._image_due_s is None
+
     def _op_1008(self, request, payload):  # GetObjectInfo
-        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or self._image is None:
+        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or not self._image_ready():
+            self.premature_requests += 1
             return Response.INVALID_OBJECT_HANDLE
-        info = ObjectInfo(0x00010001, SONY_RAW_FORMAT, 0, len(self._image), 0, 0, 0, 0,
+        info = ObjectInfo(0x00010001, self._image_format, 0, len(self._image), 0, 0, 0, 0,
                           self.camera.scene.width_px, self.camera.scene.height_px, 16, 0, 0, 0, 0,
-                          f"DSC{self._image_number:05d}.DNG", "", "", "")
+                          self._image_name, "", "", "")
         return info.pack(), Response.OK
 
-    def _op_1009(self, request, payload):  # GetObject
-        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or self._image is None:
+    def _op_1009(self, request, payload):  # GetObject: the image leaves memory once all of it was read
+        if not request.params or request.params[0] != SONY_IN_MEMORY_OBJECT or not self._image_ready():
+            self.premature_requests += 1
             return Response.INVALID_OBJECT_HANDLE
-        image, self._image = self._image, None
         self._downloading = True
-        return image, Response.OK
+        return self._image, Response.OK
 
     # -- camera behaviour ----------------------------------------------------------------------------------
     def _expose(self) -> None:
@@ -292,13 +367,26 @@ class EmulatedSonyA7:
         settings = camera.settings()
         timestamp = dt.datetime.now().replace(microsecond=0)
         self._image_number += 1
-        self._image = camera.frame_bytes(bayer, settings, timestamp)
-        self._image_due_s = self.clock.monotonic() + camera.true_exposure_s() + PROCESSING_S
+        image = camera.frame_bytes(bayer, settings, timestamp)
+        if self.faults.whole_packet_images:  # trailing zeros after a TIFF's last IFD and strip are ignored
+            image += bytes(-(len(image) + 12) % BULK_PACKET_BYTES)
+        raw = (image, SONY_RAW_FORMAT, f"DSC{self._image_number:05d}.DNG")
+        if self.faults.image_quality in RAW_AND_JPEG_QUALITIES:  # assumption: the JPEG of the pair comes first
+            self._image, self._image_format = _FAKE_JPEG, JPEG_FORMAT
+            self._image_name, self._queued_images = f"DSC{self._image_number:05d}.JPG", [raw]
+        else:
+            self._image, self._image_format, self._image_name = raw
+        exposure_end_s = self.clock.monotonic() + camera.true_exposure_s()
+        self._image_due_s = exposure_end_s + self.latencies.image_ready_s
+        if self.faults.early_object_added:
+            self._early_event_s = exposure_end_s
 
     def _advance(self) -> None:
         """Apply whatever became due on the virtual clock: landed steps, a finished exposure."""
         now = self.clock.monotonic()
-        self._downloading = self._downloading and bool(self.in_pipe.transfers)
+        if self._early_event_s is not None and now >= self._early_event_s:
+            self._early_event_s = None
+            self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         for step in [s for s in self._steps if s[0] <= now]:
             self._steps.remove(step)
             _, code, delta = step
@@ -311,21 +399,46 @@ class EmulatedSonyA7:
             self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
         if self._image_due_s is not None and now >= self._image_due_s:
             self._image_due_s = None
-            self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+            if not self.faults.early_object_added:
+                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+
+    def _focus_found(self) -> int:
+        """0xD213: 2 once an AF body has focused after the half press, else 1."""
+        faults = self.faults
+        if faults.focus_mode == SONY_FOCUS_MANUAL or self._half_pressed_at is None or faults.never_focus:
+            return 1
+        return SONY_FOCUS_FOUND if self.clock.monotonic() >= self._half_pressed_at + self.latencies.focus_s else 1
 
     def _descriptors(self) -> list[PropertyDescriptor]:
         self._advance()
         settings = self.camera.settings()
+        faults = self.faults
         pending = SONY_PENDING_IMAGE_FLAG | 1 if self._image is not None and self._image_due_s is None else 0
         shutter = self.camera.notch.ptp_value
-        return [
+        iso = ISO_AUTO if faults.iso_auto else int(settings.iso)
+        descriptors = [
             PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
-            PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, int(settings.iso), FORM_ENUMERATION,
-                               ISO_VALUES),
+            PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
+                               (*ISO_VALUES, ISO_AUTO)),
             PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100)),
-            PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, 0x10),
+            PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),
+            PropertyDescriptor(Property.FOCUS_MODE, DataType.UINT16, 1, 1, 2, faults.focus_mode, FORM_ENUMERATION,
+                               (1, 2, 0x8004, 0x8005)),
+            PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, faults.exposure_mode),
+            PropertyDescriptor(Property.DRIVE_MODE, DataType.UINT16, 1, 1, 1, 1),
+            PropertyDescriptor(Property.SONY_FOCUS_FOUND, DataType.UINT8, 0, 1, 1, self._focus_found()),
             PropertyDescriptor(Property.SONY_PENDING_IMAGES, DataType.UINT16, 0, 1, 0, pending),
         ]
+        if faults.odd_property_types:  # codes of the A7's lens/body info; the types are what matters here
+            descriptors += [
+                PropertyDescriptor(0xD2A0, DataType.ARRAY | DataType.UINT16, 0, 1, (), (1, 2, 3)),
+                PropertyDescriptor(0xD2A1, DataType.INT128, 0, 1, -1, -(1 << 100), FORM_RANGE, (-(1 << 127), 0, 1)),
+                PropertyDescriptor(0xD2A2, DataType.UINT128, 0, 1, 0, (1 << 128) - 1),
+                PropertyDescriptor(0xD2A3, DataType.STRING, 0, 1, "", "FE 50mm F1.8"),
+                PropertyDescriptor(0xD2A4, DataType.ARRAY | DataType.INT8, 0, 1, (), (-1, 0, 1), FORM_ENUMERATION,
+                                   ((), (-1, 0, 1))),
+            ]
+        return descriptors
 
 
 class EmulatedUsbBackend(usb.backend.IBackend):
@@ -418,7 +531,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         return len(data) if data is not None else 0
 
     def clear_halt(self, dev_handle, ep):
-        pass
+        self.camera.clear_halt()
 
     def reset_device(self, dev_handle):
         self.camera._reset_state()

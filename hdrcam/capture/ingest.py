@@ -3,7 +3,9 @@
 A bracket is a run of frames from one camera at one ISO, aperture and frame size, taken close together
 (no gap longer than ``max_gap_s`` plus the previous exposure), with distinct exposure times; a repeated
 exposure starts the next bracket. Brackets shot alternately (e.g. at two ISOs) are separated by their
-settings. A file that fits no bracket, or cannot be read, is reported - never silently dropped.
+settings. Every file of the folder is offered to LibRaw (no list of suffixes): one it does not open, or
+that fits no bracket, is reported with the reason - never silently dropped. Hidden files and hdrcam's own
+JSON manifests are not candidates.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from pathlib import Path
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import RAW_SUFFIXES, RawMetadata, read_raw_metadata
+from hdrcam.io.raw import RawMetadata, read_raw_metadata
 
 DEFAULT_MAX_GAP_S = 10.0
 
@@ -25,10 +27,15 @@ class IngestResult:
     report: list[str]  # one line per file that is not in a bracket
 
 
+NOT_CANDIDATES = (".json",)  # hdrcam's manifests beside the frames
+
+
 def raw_files(folder: Path) -> list[Path]:
+    """The files of ``folder`` that may be RAW files: all but hidden files and manifests (LibRaw decides)."""
     if not folder.is_dir():
         raise InputError(f"{folder}: not a folder")
-    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in RAW_SUFFIXES)
+    return sorted(p for p in folder.iterdir()
+                  if p.is_file() and not p.name.startswith(".") and p.suffix.lower() not in NOT_CANDIDATES)
 
 
 def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:

@@ -50,11 +50,16 @@ NOTCHES_PER_EV = 3
 
 
 def shutter_from_ptp(value: int) -> ShutterNotch:
-    """The notch of a 0xD20D value; ValueError for bulb (0) or an unknown value."""
+    """The notch of a 0xD20D value, read as the fraction numerator / denominator (libgphoto2's reading: 300/10
+    and 30/1 are both 30 s); ValueError for Bulb (0) or a time that is no notch."""
+    numerator, denominator = value >> 16, value & 0xFFFF
+    if value == 0 or denominator == 0:
+        raise ValueError(f"the shutter is on Bulb (0x{value:08X}); never use Bulb for calibration")
+    seconds = Fraction(numerator, denominator)
     for notch in SHUTTER_NOTCHES:
-        if notch.ptp_value == value:
+        if notch.nominal == seconds:
             return notch
-    raise ValueError(f"shutter value 0x{value:08X} is not a known notch (bulb is 0; never use bulb for calibration)")
+    raise ValueError(f"shutter value 0x{value:08X} ({numerator}/{denominator} s) is not a known notch")
 
 
 def nearest_shutter(exposure_s: float) -> ShutterNotch:

@@ -4,33 +4,82 @@ Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo 
 the SDIO handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every
 property descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
 stepped one notch at a time with 0x9207; each step is polled through 0x9209 until the value lands, and an
-overshoot is stepped back. Capture: drain a pending in-memory image, half press, full press, release,
-wait for event 0xC201 (or 0xD215 >= 0x8000), then GetObjectInfo and GetObject on 0xFFFFC001.
-All vendor quirks live here; the generic PTP layer knows nothing of Sony.
+overshoot is stepped back. An empty 0x9202 answer is asked again (libgphoto2 does; the body is still
+starting its PC-remote mode). The handshake refuses, before any shot, a body not on M (0x500E), recording
+JPEG only (0x5004 without its RAW bit) or on Bulb, and records focus mode, drive mode and firmware.
+
+Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image
+still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (never in MF), with a
+timeout; full press, release both; then wait until 0xD215 >= 0x8000 says the image is ready - events
+(0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
+camera answer GetObjectInfo with InvalidObjectHandle, and premature access can crash the firmware. Then
+GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the
+next one awaited the same way. All vendor quirks live here; the generic PTP layer knows nothing
+of Sony.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import importlib
+import os
 import struct
 from pathlib import Path
 
+import usb.backend
 import usb.core
 
 from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, nearest_iso, nearest_shutter, shutter_from_ptp
-from hdrcam.capture.ptp.codes import (SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_PROTOCOL_MODE_2,
-                                      SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, Event, Operation, Property)
+from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
+                                      SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
+                                      SONY_PROTOCOL_MODE_2, SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG,
+                                      SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, Operation, Property)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession
-from hdrcam.capture.ptp.transport import UsbTransport, is_ptp_interface
+from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.raw import read_raw
 
 STEP_POLL_INTERVAL_S = 0.1
 STEP_TIMEOUT_S = 3.0  # a notch lands in ~0.7 s on an A7
 CAPTURE_TIMEOUT_S = 35.0  # plus the exposure time
+FOCUS_TIMEOUT_S = 5.0  # from the half press, in AF modes
+FOCUS_POLL_INTERVAL_S = 0.05
+SDIO_INFO_ATTEMPTS = 10  # an empty 0x9202 answer is asked again this many times, SDIO_RETRY_S apart
+SDIO_RETRY_S = 0.2
+OBJECTS_PER_SHOT = 3  # RAW + JPEG gives two
+STALE_EVENTS_MAX = 64  # events drained at the start of a shot, at most
+USB_BACKEND_VARIABLE = "HDRCAM_USB_BACKEND"
 _PRESS, _RELEASE = 2, 1
+
+
+def usb_backend_from_environment():
+    """The pyusb backend named by HDRCAM_USB_BACKEND=module:callable (None when unset: libusb).
+
+    The callable takes no arguments and returns a usb.backend.IBackend - any simulated camera put on the bus
+    this way runs through the same code as a real one (``--camera usb``)."""
+    spec = os.environ.get(USB_BACKEND_VARIABLE, "").strip()
+    if not spec:
+        return None
+    module_name, _, attribute = spec.partition(":")
+    if not module_name or not attribute:
+        raise CameraNotFound(f"{USB_BACKEND_VARIABLE}={spec!r}: give module:callable, e.g. mypackage.fake:backend")
+    try:
+        factory = getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError) as error:
+        raise CameraNotFound(f"{USB_BACKEND_VARIABLE}={spec!r}: cannot load it ({error})") from None
+    if not callable(factory):
+        raise CameraNotFound(f"{USB_BACKEND_VARIABLE}={spec!r} is a {type(factory).__name__}, not a callable that "
+                             "returns a usb.backend.IBackend")
+    try:
+        backend = factory()
+    except Exception as error:  # the outside simulator's own failure, reported in one line
+        raise CameraNotFound(f"{USB_BACKEND_VARIABLE}={spec!r} failed: {type(error).__name__}: {error}") from None
+    if not isinstance(backend, usb.backend.IBackend):
+        raise CameraNotFound(f"{USB_BACKEND_VARIABLE}={spec!r} returned {type(backend).__name__}, not a "
+                             "usb.backend.IBackend")
+    return backend
 
 
 def find_sony_camera(backend=None) -> usb.core.Device:
@@ -65,6 +114,13 @@ class TerminalLensCover:
             self.covered = covered
 
 
+def _notch(value: int):
+    try:
+        return shutter_from_ptp(value)
+    except ValueError as error:
+        raise CameraError(f"{error}: set a shutter time on the camera (mode dial on M)") from None
+
+
 def _step_data(direction: int) -> bytes:
     """0x9207 payload for one notch: u8 +1 (0x01) or -1 (0xFF)."""
     return struct.pack("<b", direction)
@@ -77,13 +133,14 @@ class SonyA7Camera:
 
     def __init__(self, device: usb.core.Device | None = None, *, backend=None, clock: Clock | None = None,
                  cover_lens=None):
-        self._device = device if device is not None else find_sony_camera(backend)
+        self._device = device if device is not None else find_sony_camera(backend or usb_backend_from_environment())
         self.clock = clock or Clock()
         self.cover_lens = cover_lens or TerminalLensCover()
         self.model = "Sony camera"
         self.session: PtpSession | None = None
         self.properties: dict[int, PropertyDescriptor] = {}
         self.protocol_version = 0
+        self.firmware = ""
         self._step_sign = {Property.SONY_SHUTTER_SPEED: 1, Property.SONY_ISO: 1}
 
     # -- life cycle ------------------------------------------------------------------------------------------
@@ -110,17 +167,52 @@ class SonyA7Camera:
             raise CameraError(f"{info.manufacturer} {info.model} is not a Sony camera (vendor extension "
                               f"0x{info.vendor_extension_id:X})")
         self.model = f"{info.manufacturer} {info.model}".strip()
+        self.firmware = info.device_version
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
         session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
-        _, version = session.transact(Operation.SONY_GET_SDIO_EXT_DEVICE_INFO, SONY_PROTOCOL_MODE_2)
-        if len(version) < 2:
-            raise CameraError("the camera's SDIO extension info is empty; is it in PC Remote mode?")
-        self.protocol_version = struct.unpack_from("<H", version)[0]
+        self.protocol_version = self._sdio_protocol_version()
         session.transact(Operation.SONY_SDIO_CONNECT, 3, 0, 0)
         self.refresh()
+        self._check_ready_for_raw_brackets()
+
+    def _sdio_protocol_version(self) -> int:
+        """0x9202's protocol version, asking again while the answer is empty."""
+        for attempt in range(SDIO_INFO_ATTEMPTS):
+            _, answer = self.session.transact(Operation.SONY_GET_SDIO_EXT_DEVICE_INFO, SONY_PROTOCOL_MODE_2)
+            if len(answer) >= 2:
+                return struct.unpack_from("<H", answer)[0]
+            self.session.log.append(f"GetSDIOGetExtDeviceInfo answered empty; asked again ({attempt + 1})")
+            self.clock.sleep(SDIO_RETRY_S)
+        raise CameraError(f"the camera's SDIO extension info stayed empty after {SDIO_INFO_ATTEMPTS} requests; is "
+                          "USB Connection set to PC Remote?")
+
+    def _check_ready_for_raw_brackets(self) -> None:
+        """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only."""
+        mode = self.properties.get(Property.EXPOSURE_PROGRAM_MODE)
+        if mode is not None and mode.current != SONY_EXPOSURE_MODE_M:
+            raise CameraError(f"the camera is not in manual exposure (mode 0x{mode.current:X}): turn the mode dial "
+                              "to M")
         if self._current(Property.SONY_SHUTTER_SPEED) == 0:
             raise CameraError("the shutter is on Bulb: set the mode dial to M and a shutter time "
                               "(Bulb's hot-pixel filter flattens a PSF core)")
+        quality = self.properties.get(Property.IMAGE_QUALITY)
+        if quality is not None and not quality.current & SONY_RAW_QUALITY_FLAG:
+            raise CameraError(f"the camera records JPEG only (quality 0x{quality.current:02X}): set File Format to "
+                              "RAW (or RAW & JPEG) in the camera's menu")
+
+    @property
+    def focus_is_manual(self) -> bool:
+        mode = self.properties.get(Property.FOCUS_MODE)
+        return mode is None or mode.current == SONY_FOCUS_MANUAL
+
+    def details(self) -> dict:
+        """Focus mode, drive mode and firmware, for the bracket manifest."""
+        def named(code, names):
+            descriptor = self.properties.get(code)
+            return None if descriptor is None else names.get(descriptor.current, f"0x{descriptor.current:X}")
+
+        return {"focus_mode": named(Property.FOCUS_MODE, FOCUS_MODE_NAMES),
+                "drive_mode": named(Property.DRIVE_MODE, DRIVE_MODE_NAMES), "firmware": self.firmware}
 
     def refresh(self) -> dict[int, PropertyDescriptor]:
         """Read every property descriptor (0x9209)."""
@@ -134,7 +226,7 @@ class SonyA7Camera:
 
     # -- exposure --------------------------------------------------------------------------------------------
     def settings(self) -> ExposureSettings:
-        notch = shutter_from_ptp(self._current(Property.SONY_SHUTTER_SPEED))
+        notch = _notch(self._current(Property.SONY_SHUTTER_SPEED))
         iso = self._current(Property.SONY_ISO) & 0xFFFFFF
         f_number = self._current(Property.F_NUMBER) / 100.0 if Property.F_NUMBER in self.properties else float("nan")
         return ExposureSettings(float(notch.nominal), notch.label, float(iso), f_number)
@@ -143,7 +235,7 @@ class SonyA7Camera:
         if exposure_s is not None:
             target = nearest_shutter(exposure_s).index
             self._step_to(Property.SONY_SHUTTER_SPEED, target,
-                          lambda value: shutter_from_ptp(value).index, len(SHUTTER_NOTCHES))
+                          lambda value: _notch(value).index, len(SHUTTER_NOTCHES))
         if iso is not None:
             target_iso = nearest_iso(iso)
             self._step_to(Property.SONY_ISO, ISO_VALUES.index(target_iso), self._iso_index, len(ISO_VALUES))
@@ -187,20 +279,69 @@ class SonyA7Camera:
         self.cover_lens(dark)
         session = self.session
         settings = self.settings()
+        self._drain_stale_events()
         self._drain_pending_image()
-        for button, state in ((Property.SONY_HALF_PRESS, _PRESS), (Property.SONY_FULL_PRESS, _PRESS),
-                              (Property.SONY_FULL_PRESS, _RELEASE), (Property.SONY_HALF_PRESS, _RELEASE)):
-            session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, button, data_out=struct.pack("<H", state))
+        self._press(Property.SONY_HALF_PRESS, _PRESS)
+        if not self.focus_is_manual:
+            self._wait_for_focus()
+        self._press(Property.SONY_FULL_PRESS, _PRESS)
+        self._press(Property.SONY_FULL_PRESS, _RELEASE)
+        self._press(Property.SONY_HALF_PRESS, _RELEASE)
         timestamp = dt.datetime.now().replace(microsecond=0)
-        session.wait_for_event(lambda event: event.code == Event.SONY_OBJECT_ADDED,
-                               CAPTURE_TIMEOUT_S + settings.exposure_s, poll=self._image_pending)
-        info = session.object_info(SONY_IN_MEMORY_OBJECT)
-        content = session.get_object(SONY_IN_MEMORY_OBJECT)
-        if len(content) != info.compressed_size:
-            raise CameraError(f"downloaded {len(content)} bytes of {info.filename}, expected {info.compressed_size}")
+        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s)
+        info, content = self._download_raw(CAPTURE_TIMEOUT_S)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
+
+    def _download_raw(self, timeout_s: float):
+        """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped."""
+        for _ in range(OBJECTS_PER_SHOT):
+            info = self.session.object_info(SONY_IN_MEMORY_OBJECT)
+            content = self.session.get_object(SONY_IN_MEMORY_OBJECT)
+            if len(content) != info.compressed_size:
+                raise CameraError(f"downloaded {len(content)} bytes of {info.filename}, expected "
+                                  f"{info.compressed_size}")
+            if info.object_format == SONY_RAW_FORMAT:
+                return info, content
+            self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
+            self._wait_for_image(timeout_s)
+        raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
+
+    def _press(self, button: int, state: int) -> None:
+        self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, button, data_out=struct.pack("<H", state))
+
+    def _wait_for_focus(self) -> None:
+        """Poll FocusFound until it turns 2; CameraError after FOCUS_TIMEOUT_S (the half press is released)."""
+        deadline = self.clock.monotonic() + FOCUS_TIMEOUT_S
+        while self._current_after_refresh(Property.SONY_FOCUS_FOUND) != SONY_FOCUS_FOUND:
+            if self.clock.monotonic() > deadline:
+                self._press(Property.SONY_HALF_PRESS, _RELEASE)
+                raise CameraError(f"the camera found no focus within {FOCUS_TIMEOUT_S:g} s of the half press: focus "
+                                  "by hand and set the focus mode to MF (a calibration bracket must not refocus)")
+            self.clock.sleep(FOCUS_POLL_INTERVAL_S)
+
+    def _current_after_refresh(self, code: int):
+        descriptor = self.refresh().get(code)
+        if descriptor is None:
+            raise CameraError(f"the camera does not report property 0x{code:04X}")
+        return descriptor.current
+
+    def _wait_for_image(self, timeout_s: float) -> None:
+        """Until 0xD215 says an image is ready; events only shorten the wait between polls."""
+        deadline = self.clock.monotonic() + timeout_s
+        while not self._image_pending():
+            if self.clock.monotonic() > deadline:
+                raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter release")
+            if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
+                    and self.session.transport.interrupt_in is None:
+                self.clock.sleep(STEP_POLL_INTERVAL_S)
+
+    def _drain_stale_events(self) -> None:
+        """Read and drop the events queued since the last shot (an old ObjectAdded says nothing of this one)."""
+        for _ in range(STALE_EVENTS_MAX):
+            if self.session.transport.read_event(1) is None:
+                return
 
     def _image_pending(self) -> bool:
         return self.refresh()[Property.SONY_PENDING_IMAGES].current >= SONY_PENDING_IMAGE_FLAG

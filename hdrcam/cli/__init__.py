@@ -20,14 +20,14 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from hdrcam.cli import (calibrate_command, capture_command, demo_command, design_command, destreak_command,
-                            evaluate_command, export_command, fabricate_command, fuse_command, ingest_command, psf_command,
-                            reconstruct_command, simulate_command)
+                            evaluate_command, export_command, fabricate_command, fuse_command, ingest_command,
+                            inspect_command, psf_command, reconstruct_command, simulate_command)
 
     parser = OneLineParser(prog="hdrcam", description="Snapshot HDR imaging with a learned rank-1 diffractive "
                                                       "optical element (Sun et al., CVPR 2020).")
     parser.add_argument("--version", action="version", version=f"hdrcam {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="<command>", required=True)
-    for module in (psf_command, fabricate_command, capture_command, ingest_command, fuse_command,
+    for module in (psf_command, fabricate_command, capture_command, ingest_command, inspect_command, fuse_command,
                    calibrate_command, design_command, evaluate_command, simulate_command, reconstruct_command,
                    destreak_command, export_command, demo_command):
         module.register(commands)

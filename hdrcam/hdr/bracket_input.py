@@ -1,11 +1,13 @@
 """The frames of a bracket, read and checked: same size, CFA, ISO and aperture; distinct exposures.
 
 A bracket is a bracket.json (or a folder holding one), a folder of RAW files, or a list of RAW files; without
-a manifest the exposures come from the files' metadata. Frames are sorted from shortest to longest.
+a manifest the exposures come from the files' metadata. Frames are sorted from shortest to longest. In a
+folder, files LibRaw does not open as RAW are skipped with a warning naming each; a damaged RAW is refused.
 """
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +15,7 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket
 from hdrcam.errors import InputError
-from hdrcam.io.raw import RawFrame, read_raw
+from hdrcam.io.raw import NotRawError, RawFrame, read_raw
 
 
 def bracket_paths(sources: list[Path]) -> list[Path]:
@@ -31,9 +33,18 @@ def bracket_paths(sources: list[Path]) -> list[Path]:
 def read_bracket(sources: list[Path]) -> list[RawFrame]:
     """Read and check every frame; InputError naming the offending file otherwise."""
     paths = bracket_paths(sources)
-    if len(paths) < 1:
+    from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
+    frames = []
+    for path in paths:
+        try:
+            frames.append(read_raw(path))
+        except NotRawError as error:
+            if not from_folder:
+                raise
+            warnings.warn(f"skipped {error}")
+    if len(frames) < 1:
         raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
-    frames = sorted((read_raw(path) for path in paths), key=lambda f: f.metadata.exposure_s)
+    frames.sort(key=lambda f: f.metadata.exposure_s)
     reference = frames[0].metadata
     for frame in frames[1:]:
         meta = frame.metadata

@@ -8,6 +8,7 @@ every frame (its value is a lower bound); optional per-channel variance.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import cv2
@@ -19,6 +20,7 @@ from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.demosaic import demosaic_bilinear
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.raw import RawFrame
+from hdrcam.io.raw_clipping import clipped_samples
 from hdrcam.profiles import CameraSpec
 
 UNITS = "relative radiance: full wells per second at ISO 100"
@@ -38,7 +40,8 @@ class FusedImage:
                 "frames": ", ".join(f.metadata.path.name for f in self.frames),
                 "labelled_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.labelled_exposures_s),
                 "estimated_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.exposures_s),
-                "clip_level_dn": float(self.merge.clip_level_dn)}
+                "clip_level_dn": float(self.merge.clip_level_dn),
+                "clip_levels_dn": ", ".join(f"{v:g}" for v in self.merge.clip_level_tile_dn.ravel())}
 
 
 def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[RawFrame | None] | None:
@@ -62,8 +65,7 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
 def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,
          with_variance: bool = False) -> FusedImage:
     frames = read_bracket(sources)
-    white = frames[-1].metadata.white_level_dn
-    if all(int(frame.bayer_dn.min()) >= white - 1 for frame in frames):
+    if all(clipped_samples(frame.bayer_dn, frame.clip_level_tile_dn).all() for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks))
     meta = frames[0].metadata
@@ -71,7 +73,10 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     variance = demosaic_bilinear(merge.variance.clip(max=1e30), meta.cfa_pattern) if with_variance else None
     clipped = cv2.dilate(merge.clipped_everywhere.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     colour = "camera RGB"
-    if not camera_rgb:
+    if not camera_rgb and not meta.has_colour_matrix:
+        warnings.warn(f"{meta.path.name}: no usable colour matrix (LibRaw's and the DNG tags' are missing or "
+                      "zero): the output stays in camera RGB")
+    elif not camera_rgb:
         matrix = camera_to_srgb_matrix(meta.xyz_to_camera, meta.as_shot_neutral).astype(np.float32)
         rgb = rgb @ matrix.T
         if variance is not None:

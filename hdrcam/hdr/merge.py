@@ -4,7 +4,8 @@ Per frame k with exposure t_k, black-subtracted signal y_k (DN) estimates the ra
 the linear sensor's noise model, Var(y_k) = g * E[y_k] + r^2 (g DN per electron, r read noise in DN), the
 minimum-variance unbiased combination weights each sample by its inverse variance, t_k^2 / Var(y_k)
 (Granados et al. 2010); variances are evaluated at the pooled estimate (a second pass) so the weights do
-not favour samples that happen to be low. Clipped samples (above the measured clip level minus a
+not favour samples that happen to be low. Clipped samples (at or above the clip level measured per CFA
+position from the data - the pile-up below the metadata white level, hdrcam.io.raw_clipping - minus a
 margin, dilated so their neighbours are not trusted either) get no weight; a pixel clipped in every frame
 keeps the lower bound clip / t_shortest and is flagged. Exposure ratios are estimated from the data
 (ratio of sums over pixels unclipped in both frames), starting from the EXIF times.
@@ -22,6 +23,7 @@ import numpy as np
 
 from hdrcam.errors import InputError
 from hdrcam.io.raw import RawFrame
+from hdrcam.io.raw_clipping import clipped_samples, tiled
 from hdrcam.profiles import CameraSpec
 
 CLIP_MARGIN = 0.01  # of the black-to-clip range
@@ -52,7 +54,8 @@ class BayerMerge:
     clipped_everywhere: np.ndarray  # H x W bool: clipped in every frame; rate is a lower bound
     exposures_s: np.ndarray  # estimated true exposure per frame (shortest first)
     labelled_exposures_s: np.ndarray  # from the files
-    clip_level_dn: float  # above black
+    clip_level_dn: float  # above black, the lowest of the CFA positions'
+    clip_level_tile_dn: np.ndarray  # 2 x 2, absolute DN per CFA position: samples at or above are clipped
     notes: list[str]
     usable_frames: np.ndarray  # H x W uint8 bit mask: bit k set where frame k's sample was used
     noise: NoiseModel
@@ -89,16 +92,10 @@ def black_subtracted(frame: RawFrame, dark: RawFrame | None = None) -> np.ndarra
     return bayer - black
 
 
-def clip_level_dn(frames: list[RawFrame]) -> float:
-    """Measured clip level above black: the highest value of the longest frame if many pixels share it
-    (compressed RAWs clip below the nominal white level), else the white level."""
-    longest = frames[-1]
-    meta = longest.metadata
-    top = int(longest.bayer_dn.max())
-    black = float(np.mean(meta.black_level_dn))
-    if np.count_nonzero(longest.bayer_dn >= top - 1) >= 16:
-        return min(float(top), meta.white_level_dn) - black
-    return meta.white_level_dn - black
+def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:
+    """2 x 2 tile of clip levels (absolute DN) for a bracket: per CFA position, the lowest measured in any
+    frame (one sensor at one ISO clips at one level; frames that reach it show the pile-up)."""
+    return np.min(np.stack([frame.clip_level_tile_dn for frame in frames]), axis=0)
 
 
 def dilated(mask: np.ndarray) -> np.ndarray:
@@ -154,10 +151,13 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     darks = darks or [None] * len(frames)
     read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
     notes: list[str] = []
-    clip = clip_level_dn(frames)
+    clip_tile = clip_level_tile_dn(frames)
+    black_tile = meta.black_level_tile()
+    threshold_tile = black_tile + (clip_tile - black_tile) * (1.0 - CLIP_MARGIN)
+    clip = float((clip_tile - black_tile).min())
     threshold = clip * (1.0 - CLIP_MARGIN)
     signals = [black_subtracted(frame, dark) for frame, dark in zip(frames, darks)]
-    clipped = [frame.bayer_dn.astype(np.float32) - black >= threshold for frame in frames]
+    clipped = [clipped_samples(frame.bayer_dn, threshold_tile) for frame in frames]
     labelled = np.array([frame.metadata.exposure_s for frame in frames])
     exposures = estimate_exposures(signals, clipped, labelled, threshold, np.sqrt(read_variance), notes) \
         if estimate_ratios and len(frames) > 1 else labelled.copy()
@@ -179,15 +179,16 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
         pooled = np.maximum(estimate, 0.0)[None] * t * noise.gain_dn_per_e + read_variance
         estimate, information = _weighted(y, t, usable, pooled)
         none = ~usable.any(axis=0)
-        estimate[none] = threshold / exposures[0]
+        lower_bound = tiled(threshold_tile - black_tile, rows.stop - rows.start, width) / exposures[0]
+        estimate[none] = lower_bound[none]
         information[none] = 0.0
         rate[rows], everywhere[rows] = estimate, none
         variance[rows] = np.where(none, np.inf, 1.0 / np.maximum(information, 1e-30))
     to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
     variance *= to_relative ** 2
     variance[everywhere] = np.float32(np.finfo(np.float32).max)
-    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, notes, usable_frames,
-                      noise, read_variance, to_relative)
+    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, clip_tile, notes,
+                      usable_frames, noise, read_variance, to_relative)
 
 
 def _weighted(y: np.ndarray, t: np.ndarray, usable: np.ndarray, variance_dn2: np.ndarray):

@@ -1,8 +1,9 @@
 """Captured LDR frames for reconstruction, as H x W x 3 float32 camera RGB relative to white (0 .. 1).
 
-- RAW (.arw, .dng, ...): black level subtracted per CFA position, divided by (white - black), bilinear
-  demosaic, clipped to [0, 1]. No white balance or colour matrix: the network works in camera RGB, the
-  space in which the PSF is measured.
+- RAW (any file LibRaw opens): black level subtracted per CFA position, divided by (clip - black) with
+  the clip level measured from the data (the lowest of the CFA positions': a pile-up below the metadata
+  white level maps to 1, so those pixels count as clipped), bilinear demosaic, clipped to [0, 1]. No white
+  balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
 - EXR: linear RGB taken as is (1.0 = white).
 - 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
@@ -18,7 +19,8 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.hdr.demosaic import demosaic_bilinear
 from hdrcam.io.exr import read_exr
-from hdrcam.io.raw import RAW_SUFFIXES, read_raw
+from hdrcam.io.raw import read_raw
+from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
@@ -29,14 +31,7 @@ def read_ldr_frame(path: Path) -> np.ndarray:
     if not path.is_file():
         raise InputError(f"{path} does not exist")
     suffix = path.suffix.lower()
-    if suffix in RAW_SUFFIXES:
-        frame = read_raw(path)
-        black = np.tile(frame.metadata.black_level_tile(), (frame.bayer_dn.shape[0] // 2 + 1,
-                                                            frame.bayer_dn.shape[1] // 2 + 1))
-        black = black[:frame.bayer_dn.shape[0], :frame.bayer_dn.shape[1]]
-        relative = (frame.bayer_dn.astype(np.float32) - black) / (frame.metadata.white_level_dn - black)
-        rgb = demosaic_bilinear(np.clip(relative, 0.0, 1.0), frame.metadata.cfa_pattern)
-    elif suffix == ".exr":
+    if suffix == ".exr":
         rgb = read_exr(path).rgb()
     elif suffix in IMAGE_SUFFIXES:
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
@@ -47,10 +42,21 @@ def read_ldr_frame(path: Path) -> np.ndarray:
                              "an EXR or a RAW file")
         rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
     else:
-        raise InputError(f"{path}: unknown frame type {suffix!r} (RAW, EXR, 16-bit TIFF or PNG)")
+        rgb = raw_relative_rgb(path)
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     if float(rgb.max()) > LDR_TOLERANCE:
         raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
                          "capture (give the camera frame, not an HDR image)")
     return np.clip(rgb, 0.0, 1.0).astype(np.float32)
+
+
+def raw_relative_rgb(path: Path) -> np.ndarray:
+    """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced."""
+    frame = read_raw(path)
+    height, width = frame.bayer_dn.shape
+    black_tile = frame.metadata.black_level_tile()
+    black = tiled(black_tile, height, width)
+    scale_dn = float((frame.clip_level_tile_dn - black_tile).min())
+    relative = (frame.bayer_dn.astype(np.float32) - black) / scale_dn
+    return demosaic_bilinear(np.clip(relative, 0.0, 1.0), frame.metadata.cfa_pattern)

@@ -1,10 +1,23 @@
-"""Read RAW frames (ARW, DNG and whatever LibRaw reads) with rawpy.
+"""Read RAW frames - any file LibRaw opens - with rawpy.
 
 ``read_raw_metadata`` gives what a bracket needs to know (exposure, ISO, aperture, time, levels, colour);
 ``read_raw`` adds the Bayer data: the visible area in digital numbers (uint16), untouched - no black
-subtraction, no demosaicing. LibRaw does not report ISO for DNGs, nor the camera model; both are read
-from the TIFF tags (ARW and DNG are TIFF files) when LibRaw has nothing, and a capture manifest can
-override ISO.
+subtraction, no demosaicing - and the clip level measured from it (``hdrcam.io.raw_clipping``). LibRaw
+does not report ISO for DNGs, nor the camera's make and model; they are read from the TIFF tags (ARW, NEF,
+CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest can override ISO.
+
+Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
+not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs), and truncated files.
+LibRaw fills a truncated file's missing rows by repeating the last row it decoded and reports no error (an
+A7R III ARW cut to half decodes with its last 1787 rows identical), so a TIFF-based file (ARW, NEF, CR2,
+DNG, ...) is refused when its strips or tiles run past the end of the file, and a file of another format
+(CR3, RAF, ...) when its last FILLED_ROWS or more rows repeat one row that is not flat (a sensor's noise never
+repeats a row bit for bit).
+
+Colour (XYZ -> camera, D65): a DNG's own ColorMatrix tags first (the one calibrated for D65, else
+ColorMatrix2, else ColorMatrix1), then LibRaw's table for the model (LibRaw reports zeros for a model it
+does not know, whatever the DNG says); a missing, zero or singular matrix falls through to the next; with
+none left, camera RGB (``colour_matrix_source`` says which, and users of the matrix warn).
 """
 
 from __future__ import annotations
@@ -12,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
+import functools
 import os
 import sys
 from pathlib import Path
@@ -21,8 +35,15 @@ import tifffile
 
 from hdrcam.errors import InputError
 
-RAW_SUFFIXES = (".arw", ".dng", ".nef", ".cr2", ".cr3", ".raf", ".orf", ".rw2", ".pef", ".srw")
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
+NO_COLOUR_MATRIX = "none (camera RGB)"
+_MIN_MATRIX_DETERMINANT = 1e-6
+_D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
+FILLED_ROWS = 8
+
+
+class NotRawError(InputError):
+    """A file LibRaw does not open as RAW (a sidecar, a JPEG, an unknown format)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,24 +55,40 @@ class RawMetadata:
     height_px: int
     cfa_pattern: str  # the 2 x 2 tile starting at the top-left visible pixel, e.g. "RGGB"
     black_level_dn: tuple[float, float, float, float]  # per tile position, row-major like cfa_pattern
-    white_level_dn: float
-    xyz_to_camera: np.ndarray  # 3 x 3, D65 (DNG ColorMatrix1 or LibRaw's table for the model)
+    white_level_dn: float  # the metadata's white level; the sensor may clip below it (see clip levels)
+    xyz_to_camera: np.ndarray  # 3 x 3, D65; the identity when colour_matrix_source is NO_COLOUR_MATRIX
     as_shot_neutral: np.ndarray  # camera RGB of white, max 1
     exposure_s: float
     iso: float | None
     f_number: float | None
     timestamp: dt.datetime | None
-    camera_model: str
+    camera_model: str  # make and model, e.g. "Sony ILCE-7RM3"
+    make: str = "unknown"
+    file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
+    colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
 
     def black_level_tile(self) -> np.ndarray:
         """The 2 x 2 tile of black levels (float32), row-major like ``cfa_pattern``."""
         return np.asarray(self.black_level_dn, dtype=np.float32).reshape(2, 2)
+
+    @property
+    def has_colour_matrix(self) -> bool:
+        return self.colour_matrix_source != NO_COLOUR_MATRIX
 
 
 @dataclasses.dataclass(frozen=True)
 class RawFrame:
     metadata: RawMetadata
     bayer_dn: np.ndarray  # H x W uint16
+
+    @functools.cached_property
+    def clip_level_tile_dn(self) -> np.ndarray:
+        """2 x 2 float32 tile (like ``cfa_pattern``) of the measured clip level in DN: every sample at or above
+        its position's value is clipped. The pile-up below the metadata white level where there is one."""
+        from hdrcam.io.raw_clipping import measure_clip_levels
+
+        meta = self.metadata
+        return measure_clip_levels(self.bayer_dn, meta.black_level_tile(), meta.white_level_dn)
 
 
 def read_raw_metadata(path: str | Path) -> RawMetadata:
@@ -70,33 +107,90 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
 
     if not path.is_file():
         raise InputError(f"{path}: no such RAW file")
+    tiff = _tiff_facts(path)
+    if tiff.data_end_bytes > tiff.file_bytes:
+        raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
+                         f"file ends at {tiff.file_bytes}; copy it from the card again")
     try:
         with _libraw_stderr_silenced(), rawpy.imread(str(path)) as raw:
-            if raw.raw_type != rawpy.RawType.Flat or raw.num_colors != 3:
-                raise InputError(f"{path}: not a Bayer RAW file (LibRaw: {raw.raw_type}, {raw.num_colors} colours)")
+            _check_bayer(path, raw)
             tile = raw.raw_pattern[:2, :2].ravel()
             black = [float(b) for b in raw.black_level_per_channel]
             other = raw.other
             bayer = np.array(raw.raw_image_visible, dtype=np.uint16) if with_pixels else None
-            tiff_model, tiff_iso = _tiff_tags(path)
+            matrix, matrix_source = _colour_matrix(np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64), tiff)
             metadata = RawMetadata(
                 path=path, width_px=int(raw.sizes.width), height_px=int(raw.sizes.height),
                 cfa_pattern="".join(_CFA_LETTERS[i] for i in tile),
                 black_level_dn=tuple(black[i] for i in tile), white_level_dn=float(raw.white_level),
-                xyz_to_camera=np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64),
+                xyz_to_camera=matrix,
                 as_shot_neutral=_neutral_from_multipliers(np.array(raw.camera_whitebalance[:3], np.float64)),
                 exposure_s=float(f"{other.shutter_speed:.7g}"),  # LibRaw keeps float32
-                iso=float(other.iso_speed) if other.iso_speed > 0 else tiff_iso,
+                iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
                 timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) else None,
-                camera_model=tiff_model or "unknown")
+                camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or "unknown",
+                make=tiff.make or "unknown", file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
+                colour_matrix_source=matrix_source)
     except InputError:
         raise
-    except Exception as error:  # LibRaw raises many types for damaged or unsupported files
-        raise InputError(f"{path}: cannot read as RAW ({type(error).__name__}: {error})") from None
+    except rawpy.LibRawFileUnsupportedError as error:
+        raise NotRawError(f"{path}: LibRaw does not open it as RAW ({_libraw_reason(error)})") from None
+    except Exception as error:  # LibRaw raises many types for damaged files
+        raise InputError(f"{path}: cannot read as RAW ({type(error).__name__}: {_libraw_reason(error)})") from None
+    filled_rows = repeated_tail_rows(bayer) if bayer is not None and not tiff.data_end_bytes else 0
+    if filled_rows >= FILLED_ROWS:
+        raise InputError(f"{path}: truncated or damaged: its last {filled_rows} rows repeat one row (LibRaw fills "
+                         "what a file lacks that way); copy it from the card again")
     if not metadata.exposure_s > 0:
         raise InputError(f"{path}: the file has no exposure time; give the exposures in a bracket.json")
     return metadata, bayer
+
+
+def repeated_tail_rows(bayer_dn: np.ndarray) -> int:
+    """How many rows at the bottom repeat the one above them bit for bit (0 when the last row is flat: a clipped
+    or black row may legitimately repeat)."""
+    if bayer_dn.shape[0] < 2 or bayer_dn[-1].min() == bayer_dn[-1].max():
+        return 0
+    differs = np.flatnonzero(np.any(bayer_dn[1:] != bayer_dn[:-1], axis=1))
+    return bayer_dn.shape[0] - 1 - (int(differs[-1]) + 1 if differs.size else 0)
+
+
+def _libraw_reason(error: Exception) -> str:
+    """rawpy's message without the bytes literal around LibRaw's text."""
+    text = str(error)
+    return text[2:-1] if text[:2] in ("b'", 'b"') and text[-1:] in ("'", '"') else text
+
+
+def _check_bayer(path: Path, raw) -> None:
+    """InputError unless the sensor is a 2 x 2 Bayer mosaic of R, G, B."""
+    import rawpy
+
+    if raw.raw_type != rawpy.RawType.Flat:
+        raise InputError(f"{path}: not a mosaic RAW (LibRaw: {raw.raw_type.name}, e.g. a Foveon or linear DNG); "
+                         "hdrcam merges 2 x 2 Bayer data only")
+    pattern = np.asarray(raw.raw_pattern)
+    if pattern.shape == (6, 6):
+        raise InputError(f"{path}: X-Trans sensor (6 x 6 colour filter); hdrcam merges 2 x 2 Bayer data only")
+    if raw.num_colors != 3 or pattern.shape != (2, 2) or sorted({_CFA_LETTERS[i] for i in pattern.ravel()}) != \
+            ["B", "G", "R"]:
+        raise InputError(f"{path}: colour filter {raw.color_desc.decode(errors='replace')} of "
+                         f"{pattern.shape[0]} x {pattern.shape[1]} is not a 2 x 2 RGB Bayer mosaic; hdrcam merges "
+                         "those only")
+
+
+def _colour_matrix(libraw_matrix: np.ndarray, tiff: "_TiffFacts") -> tuple[np.ndarray, str]:
+    """(XYZ -> camera matrix, where it came from): LibRaw's, else the DNG tags', else the identity."""
+    candidates = [(f"DNG {name}", matrix) for name, matrix in tiff.colour_matrices] + [("LibRaw", libraw_matrix)]
+    for source, matrix in candidates:
+        if _usable(matrix):
+            return matrix, source
+    return np.eye(3), NO_COLOUR_MATRIX
+
+
+def _usable(matrix: np.ndarray | None) -> bool:
+    return matrix is not None and matrix.shape == (3, 3) and bool(np.isfinite(matrix).all()) \
+        and abs(float(np.linalg.det(matrix))) > _MIN_MATRIX_DETERMINANT
 
 
 @contextlib.contextmanager
@@ -114,19 +208,73 @@ def _libraw_stderr_silenced():
         os.close(saved)
 
 
-def _tiff_tags(path: Path) -> tuple[str | None, float | None]:
-    """(Make + Model, ISO) from the first IFD and its EXIF IFD; (None, None) for non-TIFF RAW formats."""
+@dataclasses.dataclass
+class _TiffFacts:
+    """What the TIFF structure of a RAW file says (nothing for formats that are not TIFF: CR3, RAF, CRW...)."""
+
+    file_bytes: int
+    data_end_bytes: int = 0  # the furthest byte any image strip or tile of any IFD claims
+    make: str | None = None
+    model: str | None = None
+    iso: float | None = None
+    file_format: str | None = None  # "DNG" when the DNGVersion tag is there
+    colour_matrices: list = dataclasses.field(default_factory=list)  # [(tag name, 3 x 3)], preferred first
+
+
+def _tiff_facts(path: Path) -> _TiffFacts:
+    facts = _TiffFacts(file_bytes=path.stat().st_size)
     try:
         with tifffile.TiffFile(path) as tiff:
             tags = tiff.pages[0].tags
-            name = " ".join(str(tags[code].value).strip() for code in (271, 272) if code in tags) or None
+            facts.make, facts.model = (_text(tags, code) for code in (271, 272))
             exif = tags[34665].value if 34665 in tags else {}
             iso_value = tags[34855].value if 34855 in tags else (exif or {}).get("ISOSpeedRatings")
-    except Exception:
-        return None, None
-    if isinstance(iso_value, (tuple, list)):
-        iso_value = iso_value[0] if iso_value else None
-    return name, float(iso_value) if iso_value else None
+            if isinstance(iso_value, (tuple, list)):
+                iso_value = iso_value[0] if iso_value else None
+            facts.iso = float(iso_value) if iso_value else None
+            if 50706 in tags:
+                facts.file_format = "DNG"
+            matrices = [(name, _rationals(tags[code].value), tags[illuminant].value if illuminant in tags else 0)
+                        for name, code, illuminant in (("ColorMatrix2", 50722, 50779), ("ColorMatrix1", 50721, 50778))
+                        if code in tags and len(np.ravel(tags[code].value)) >= 9]
+            matrices.sort(key=lambda entry: entry[2] != _D65)  # stable: D65 first, then ColorMatrix2, 1
+            facts.colour_matrices = [(name, matrix) for name, matrix, _ in matrices]
+            facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
+    except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
+        pass
+    return facts
+
+
+def _text(tags, code: int) -> str | None:
+    if code not in tags:
+        return None
+    value = tags[code].value
+    text = value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+    return text.strip("\x00 ").strip() or None
+
+
+def _rationals(value) -> np.ndarray:
+    """A TIFF SRATIONAL array (tifffile gives flat numerator, denominator pairs or tuples) as 3 x 3 floats."""
+    flat = np.asarray(value, dtype=np.float64).ravel()
+    if flat.size >= 18:
+        numerators, denominators = flat[0:18:2], flat[1:18:2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            flat = np.where(denominators != 0, numerators / denominators, np.nan)
+    return flat[:9].reshape(3, 3)
+
+
+def _all_pages(tiff: tifffile.TiffFile):
+    """Every IFD, SubIFDs included (an ARW's or DNG's RAW data often lives in a SubIFD)."""
+    stack = list(tiff.pages)
+    while stack:
+        page = stack.pop()
+        yield page
+        stack.extend(getattr(page, "pages", None) or [])
+
+
+def _data_end(page) -> int:
+    offsets, counts = getattr(page, "dataoffsets", ()), getattr(page, "databytecounts", ())
+    return max((int(o) + int(c) for o, c in zip(offsets, counts) if c), default=0)
 
 
 def _neutral_from_multipliers(multipliers: np.ndarray) -> np.ndarray:

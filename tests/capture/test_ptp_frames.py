@@ -59,8 +59,9 @@ def test_shutter_and_iso_encodings():
     assert by_label["1/8000"].ptp_value == 0x00011F40
     assert by_label['30"'].ptp_value == 0x012C000A and by_label['0.8"'].ptp_value == 0x0008000A
     assert shutter_from_ptp(0x0001007D).true_s == 2.0 ** -7  # 1/125 is really 1/128
-    with pytest.raises(ValueError, match="bulb"):
+    with pytest.raises(ValueError, match="Bulb"):
         shutter_from_ptp(0)
+    assert shutter_from_ptp((30 << 16) | 1) == by_label['30"']  # 30/1 and 300/10 are the same 30 s
     assert ISO_AUTO == 0xFFFFFF
 
 

@@ -54,10 +54,14 @@ class Event(IntEnum):
 
 
 class Property(IntEnum):
-    IMAGE_QUALITY = 0x5004  # Sony: 0x10 = RAW
+    IMAGE_QUALITY = 0x5004  # Sony: bit 0x10 set = RAW is recorded (0x10 RAW, 0x13/0x14 RAW+JPEG; 0x02-0x04 JPEG)
     F_NUMBER = 0x5007  # u16, f-number x 100
+    FOCUS_MODE = 0x500A  # 1 = manual (MF); 2 = AF-S, 0x8004 = AF-C, 0x8005 = DMF (libgphoto2)
+    EXPOSURE_PROGRAM_MODE = 0x500E  # 1 = M
+    DRIVE_MODE = 0x5013  # 1 = single shot
     EXPOSURE_COMPENSATION = 0x5010  # i16, EV x 1000
     SONY_SHUTTER_SPEED = 0xD20D  # u32 (numerator << 16) | denominator; 0 = bulb
+    SONY_FOCUS_FOUND = 0xD213  # 1 = searching / not focused, 2 = focus found (after a half press)
     SONY_PENDING_IMAGES = 0xD215  # >= 0x8000: an image waits in memory as 0xFFFFC001
     SONY_ISO = 0xD21E  # low 24 bits; 0xFFFFFF = auto
     SONY_HALF_PRESS = 0xD2C1  # 2 = press, 1 = release (autofocus button)
@@ -73,6 +77,9 @@ class DataType(IntEnum):
     UINT32 = 0x0006
     INT64 = 0x0007
     UINT64 = 0x0008
+    INT128 = 0x0009
+    UINT128 = 0x000A
+    ARRAY = 0x4000  # flag: ARRAY | element type (AINT8 0x4001 ... AUINT128 0x400A): u32 count, then elements
     STRING = 0xFFFF
 
 
@@ -91,9 +98,18 @@ SONY_A7_PC_REMOTE_PRODUCT_ID = 0x094C
 SONY_IN_MEMORY_OBJECT = 0xFFFFC001
 SONY_RAW_FORMAT = 0xB101
 SONY_PENDING_IMAGE_FLAG = 0x8000
+SONY_RAW_QUALITY_FLAG = 0x10  # in 0x5004: RAW is recorded
+SONY_FOCUS_MANUAL = 1
+SONY_FOCUS_FOUND = 2
+SONY_EXPOSURE_MODE_M = 1
 SONY_PROTOCOL_MODE_2 = 0xC8  # the A7's "old" SDIO protocol: notch stepping only
 CANCEL_EVENT_CODE = 0x4001  # the event code carried by a cancel request
 PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
+
+
+FOCUS_MODE_NAMES = {1: "MF", 2: "AF-S", 3: "AF-A", 0x8004: "AF-C", 0x8005: "DMF", 0x8006: "AF-D"}
+DRIVE_MODE_NAMES = {1: "single", 2: "continuous", 0x8003: "self-timer 10 s", 0x8004: "self-timer 2 s",
+                    0x8337: "bracket"}
 
 
 def name(code: int) -> str:

@@ -1,5 +1,7 @@
 """PTP datasets: integers, strings and arrays; DeviceInfo, ObjectInfo and Sony property descriptors.
 
+Every PTP data type is read: integers of 8 to 128 bits (a 128-bit value is two u64 halves, low first), arrays
+of any of them (type 0x4000 | element type: a u32 count and the elements; read as tuples) and strings.
 A PTP string is a u8 count of UTF-16LE code units including the terminating NUL (0 for the empty
 string), then the code units. An array is a u32 count and its elements. Sony's 0x9209 answer is a u64
 count of descriptors, then per descriptor: u16 code, u16 data type, u8 get/set, u8 enabled, the factory
@@ -38,8 +40,20 @@ class Reader:
     def value(self, data_type: int):
         if data_type == DataType.STRING:
             return self.string()
+        if data_type in (DataType.INT128, DataType.UINT128):
+            low, high = self._take("Q"), self._take("Q")
+            number = low | high << 64
+            return number - (1 << 128) if data_type == DataType.INT128 and high >> 63 else number
+        if data_type & DataType.ARRAY and data_type != DataType.STRING:
+            element = data_type & ~DataType.ARRAY
+            if element not in _FORMATS and element not in (DataType.INT128, DataType.UINT128):
+                raise DatasetError(f"unknown PTP data type 0x{data_type:04X}")
+            count = self.u32()
+            if count > len(self.payload):
+                raise DatasetError(f"an array of {count} elements is longer than the dataset")
+            return tuple(self.value(element) for _ in range(count))
         if data_type not in _FORMATS:
-            raise DatasetError(f"unsupported PTP data type 0x{data_type:04X}")
+            raise DatasetError(f"unknown PTP data type 0x{data_type:04X}")
         return self._take(_FORMATS[data_type])
 
     def u8(self) -> int:
@@ -76,6 +90,15 @@ class Writer:
     def value(self, data_type: int, value) -> "Writer":
         if data_type == DataType.STRING:
             return self.string(value)
+        if data_type in (DataType.INT128, DataType.UINT128):
+            number = value % (1 << 128)
+            self.parts.append(struct.pack("<QQ", number & (1 << 64) - 1, number >> 64))
+            return self
+        if data_type & DataType.ARRAY:
+            self.u32(len(value))
+            for element in value:
+                self.value(data_type & ~DataType.ARRAY, element)
+            return self
         self.parts.append(struct.pack("<" + _FORMATS[DataType(data_type)], value))
         return self
 

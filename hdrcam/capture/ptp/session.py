@@ -1,26 +1,28 @@
 """PTP sessions and transactions: command, optional data phase (either direction), response.
 
 OpenSession goes out with transaction id 0; later transactions count up from 1. A response that is not
-for the transaction in flight is a protocol error. DeviceBusy is retried with back-off; a timeout cancels
-the transaction (class request 0x64), waits for the device to report OK, and is retried once for
-operations that only read.
+for the transaction in flight is a protocol error. DeviceBusy is retried with back-off. A timeout cancels
+the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) has its
+halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
+``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
+not repeated blindly (a second notch step or button press would do something else) and raises.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-
 from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp import codes
 from hdrcam.capture.ptp.codes import ContainerType, Operation, Response
 from hdrcam.capture.ptp.container import Container, command, data
 from hdrcam.capture.ptp.datasets import DeviceInfo, ObjectInfo
-from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport
+from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport
 
 READ_ONLY_OPERATIONS = {Operation.GET_DEVICE_INFO, Operation.GET_OBJECT_INFO, Operation.GET_OBJECT,
                         Operation.GET_DEVICE_PROP_DESC, Operation.GET_DEVICE_PROP_VALUE,
                         Operation.SONY_GET_ALL_DEVICE_PROP_DATA, Operation.SONY_GET_SDIO_EXT_DEVICE_INFO}
+TRANSIENT_RETRIES = 2  # timeouts and stalls, per transaction
+STATUS_WAIT_S = 5.0  # for the device to report OK after a cancel or a cleared stall
 
 
 class ResponseError(CameraError):
@@ -56,23 +58,30 @@ class PtpSession:
     def transact(self, operation: int, *params: int, data_out: bytes | None = None,
                  timeout_s: float | None = None) -> tuple[Container, bytes]:
         """Run one operation; returns (response, data received). Retries DeviceBusy; raises ResponseError."""
-        for attempt in range(self.busy_retries + 1):
+        busy = transient = 0
+        while True:
             try:
                 reply, payload = self._transaction(operation, params, data_out, timeout_s or self.timeout_s)
-            except TransportTimeout:
-                self._cancel_in_flight()
-                if operation not in READ_ONLY_OPERATIONS or attempt:
+            except (TransportTimeout, Stalled) as error:
+                if isinstance(error, Stalled):
+                    self._recover_from_stall()
+                    recovery = "cleared the halt"
+                else:
+                    self._cancel_in_flight()
+                    recovery = "cancelled"
+                if operation not in READ_ONLY_OPERATIONS or transient >= TRANSIENT_RETRIES:
                     raise
-                self.log.append(f"{codes.name(operation)} timed out; cancelled and retried")
+                transient += 1
+                self.log.append(f"{codes.name(operation)}: {error}; {recovery} and retried ({transient})")
                 continue
-            if reply.code == Response.DEVICE_BUSY and attempt < self.busy_retries:
-                self.log.append(f"{codes.name(operation)}: device busy, retry {attempt + 1}")
-                self.clock.sleep(self.busy_backoff_s * 2 ** min(attempt, 4))
+            if reply.code == Response.DEVICE_BUSY and busy < self.busy_retries:
+                busy += 1
+                self.log.append(f"{codes.name(operation)}: device busy, retry {busy}")
+                self.clock.sleep(self.busy_backoff_s * 2 ** min(busy - 1, 4))
                 continue
             if reply.code != Response.OK:
                 raise ResponseError(operation, reply.code)
             return reply, payload
-        raise ResponseError(operation, Response.DEVICE_BUSY)  # pragma: no cover - loop always returns or raises
 
     def _transaction(self, operation: int, params, data_out: bytes | None,
                      timeout_s: float) -> tuple[Container, bytes]:
@@ -110,17 +119,25 @@ class PtpSession:
             raise ProtocolError(f"data for {codes.name(reply.code)} arrived during {codes.name(operation)}")
 
     def _cancel_in_flight(self) -> None:
-        """Cancel the last transaction and wait (up to 5 s) for the device to be idle again."""
+        """Cancel the last transaction and wait for the device to be idle again."""
         transaction_id = self._next_transaction_id - 1
         try:
             self.transport.cancel(transaction_id)
-            deadline = self.clock.monotonic() + 5.0
-            while self.transport.status() != Response.OK:
-                if self.clock.monotonic() > deadline:
-                    raise CameraError("the camera stayed busy after a cancel; switch it off and on")
-                self.clock.sleep(0.1)
+            self._wait_for_idle("a cancel")
         finally:
             self.transport.clear_halts()
+
+    def _recover_from_stall(self) -> None:
+        """Clear both bulk pipes' halts, then wait for the device to report OK (what libgphoto2 does on EPIPE)."""
+        self.transport.clear_halts()
+        self._wait_for_idle("a stalled pipe")
+
+    def _wait_for_idle(self, after: str) -> None:
+        deadline = self.clock.monotonic() + STATUS_WAIT_S
+        while self.transport.status() != Response.OK:
+            if self.clock.monotonic() > deadline:
+                raise CameraError(f"the camera stayed busy after {after}; switch it off and on")
+            self.clock.sleep(0.1)
 
     # -- operations ----------------------------------------------------------------------------------------
     def open(self, session_id: int = 1) -> None:
@@ -147,17 +164,3 @@ class PtpSession:
 
     def get_object(self, handle: int, timeout_s: float = 60.0) -> bytes:
         return self.transact(Operation.GET_OBJECT, handle, timeout_s=timeout_s)[1]
-
-    def wait_for_event(self, wanted: Callable[[Container], bool], timeout_s: float,
-                       poll: Callable[[], bool] | None = None, poll_interval_s: float = 0.2) -> Container | None:
-        """Read events until one is ``wanted`` (returned) or ``poll()`` says done (None); CameraError on timeout."""
-        deadline = self.clock.monotonic() + timeout_s
-        while self.clock.monotonic() < deadline:
-            event = self.transport.read_event(int(poll_interval_s * 1000))
-            if event is not None and wanted(event):
-                return event
-            if poll is not None and poll():
-                return None
-            if event is None and self.transport.interrupt_in is None:
-                self.clock.sleep(poll_interval_s)  # otherwise the interrupt read already waited
-        raise TransportTimeout(f"no capture event from the camera within {timeout_s:g} s")

@@ -3,7 +3,7 @@
 A transaction's phases are containers on the bulk pipes; a transfer whose length is an exact multiple of
 the endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Events arrive on
 the interrupt pipe. Class requests on the control pipe cancel a transaction, reset the device and read
-its status. USB failures become ``TransportTimeout`` or ``Disconnected``.
+its status. USB failures become ``TransportTimeout``, ``Stalled`` (EPIPE) or ``Disconnected``.
 """
 
 from __future__ import annotations
@@ -25,6 +25,10 @@ _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLA
 
 class TransportTimeout(CameraError):
     """The camera did not answer within the timeout."""
+
+
+class Stalled(CameraError):
+    """An endpoint answered with a STALL (EPIPE): its halt must be cleared before the pipe works again."""
 
 
 class Disconnected(CameraError):
@@ -175,6 +179,8 @@ class _usb_errors:
 def _translate(error: usb.core.USBError, action: str, timeout_ms: int | None = None) -> CameraError:
     if isinstance(error, usb.core.USBTimeoutError) or error.errno == errno.ETIMEDOUT:
         return TransportTimeout(f"the camera did not answer within {timeout_ms / 1000:g} s while {action}")
+    if error.errno == errno.EPIPE:
+        return Stalled(f"the camera stalled a pipe while {action}")
     if error.errno in (errno.ENODEV, errno.EIO, errno.ENOENT) or "No such device" in str(error):
         return Disconnected(f"the camera disconnected while {action} ({error})")
     return CameraError(f"USB error while {action}: {error}")

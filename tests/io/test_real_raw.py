@@ -1,0 +1,205 @@
+"""RAW files as real cameras write them: the real Sony A7R III ARW in ../shared/data/raw (skipped when absent)
+and DNGs with realistic sensor statistics for what it does not cover (tests/io/realistic_dng.py)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from hdrcam.cli import main
+from hdrcam.capture.ingest import ingest_folder
+from hdrcam.errors import InputError
+from hdrcam.hdr.fuse import fuse
+from hdrcam.hdr.merge import merge_bayer
+from hdrcam.io.ldr_frame import read_ldr_frame
+from hdrcam.io.raw import NO_COLOUR_MATRIX, read_raw, read_raw_metadata
+from hdrcam.io.raw_clipping import channel_clip_level
+from hdrcam.profiles import load_profile
+from tests.io.realistic_dng import XTRANS, sensor_dn, write_dng
+
+ARW_NAME = "sony-ilce7rm3-DSC2164.ARW"
+CAMERA = load_profile("simulated").camera
+
+
+@pytest.fixture
+def arw(shared_data):
+    path = shared_data / "raw" / ARW_NAME
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    return path
+
+
+def _scene(height=64, width=96):
+    """DN per second above black: a dim left half, a bright right half (clips in the long frame)."""
+    radiance = np.full((height, width), 2.0e5)
+    radiance[:, width // 2:] = 2.0e6
+    return radiance
+
+
+# -- the real ARW -----------------------------------------------------------------------------------------------
+def test_the_real_arw_decodes_as_libraw_does(arw):
+    import rawpy
+
+    frame = read_raw(arw)
+    with rawpy.imread(str(arw)) as raw:
+        assert np.array_equal(frame.bayer_dn, raw.raw_image_visible)  # no flip, no crop, no black subtraction
+        assert not raw.color_matrix.any()  # LibRaw's own colour matrix is zero for this file ...
+    meta = frame.metadata
+    assert (meta.width_px, meta.height_px, meta.cfa_pattern) == (5184, 3464, "RGGB")
+    assert meta.black_level_dn == (512.0,) * 4 and meta.white_level_dn == 16383
+    assert meta.colour_matrix_source == "LibRaw"  # ... its table for the model is not
+    assert abs(np.linalg.det(meta.xyz_to_camera)) > 0.1
+    assert (meta.make, meta.camera_model, meta.file_format) == ("SONY", "SONY ILCE-7RM3", "ARW")
+    assert (meta.exposure_s, meta.iso, meta.f_number) == (0.0015625, 3200.0, 6.3)
+    # cRAW: clipped greens and blues pile up at 16372, below the metadata white, scattered up to 16628 above it
+    assert frame.clip_level_tile_dn[0, 1] == 16372 and frame.clip_level_tile_dn[1, 1] == 16372
+    assert frame.bayer_dn.max() == 16628
+
+
+def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw, tmp_path, capsys):
+    half = tmp_path / "half.ARW"
+    half.write_bytes(arw.read_bytes()[:arw.stat().st_size // 2])
+    assert main(["inspect", str(arw), str(half)]) == 1
+    out, err = capsys.readouterr()
+    lines = out.splitlines()
+    assert len(lines) == 1
+    summary = json.loads(lines[0])
+    assert summary["model"] == "SONY ILCE-7RM3" and summary["format"] == "ARW" and summary["cfa"] == "RGGB"
+    assert summary["clip_level_dn"] == [16383.0, 16372.0, 16383.0, 16372.0] and summary["clip_below_white"]
+    assert 0 < summary["clipped_fraction"] < 1e-4 and summary["colour_matrix_source"] == "LibRaw"
+    assert err.count("\n") == 1 and "half.ARW" in err and "truncated" in err
+    with pytest.raises(InputError, match="truncated"):
+        read_ldr_frame(half)  # reconstruct's reader refuses it too (LibRaw alone would fill the missing rows)
+
+
+def test_a_truncated_file_without_tiff_structure_is_caught_by_its_repeated_rows(arw, tmp_path, monkeypatch):
+    """For formats that are not TIFF (CR3, RAF, ...) only the data tells: LibRaw repeats the last decoded row."""
+    import hdrcam.io.raw as raw_module
+
+    def no_tiff_structure(path):
+        return raw_module._TiffFacts(file_bytes=path.stat().st_size)
+
+    monkeypatch.setattr(raw_module, "_tiff_facts", no_tiff_structure)
+    cut = tmp_path / "cut.ARW"
+    cut.write_bytes(arw.read_bytes()[:int(arw.stat().st_size * 0.97)])
+    with pytest.raises(InputError, match="last 107 rows repeat"):
+        read_raw(cut)
+    assert read_raw(arw).bayer_dn.shape == (3464, 5184)  # the whole file has no repeated row
+
+
+def test_repeated_rows_count_only_when_the_row_is_not_flat():
+    from hdrcam.io.raw import repeated_tail_rows
+
+    rows = np.arange(60, dtype=np.uint16).reshape(12, 5)
+    assert repeated_tail_rows(rows) == 0
+    rows[7:] = rows[6]
+    assert repeated_tail_rows(rows) == 5
+    rows[7:] = 16383  # clipped rows may repeat
+    assert repeated_tail_rows(rows) == 0
+
+
+def test_ingest_offers_every_file_to_libraw_whatever_its_suffix(arw, tmp_path):
+    shutil.copy(arw, tmp_path / "frame.kdc")  # not a suffix any list would hold for a Sony file
+    (tmp_path / "notes.txt").write_text("lens: 55-210")
+    (tmp_path / "bracket-01.json").write_text("{}")
+    result = ingest_folder(tmp_path)
+    assert result.brackets == []
+    assert len(result.report) == 2
+    assert "notes.txt" in result.report[0] and "LibRaw" in result.report[0]
+    assert "frame.kdc" in result.report[1] and "not in a bracket" in result.report[1]
+
+
+# -- the clip level, measured --------------------------------------------------------------------------------------
+def test_a_pile_up_below_white_is_the_clip_level_and_scatter_above_it_counts_as_clipped(tmp_path):
+    rng = np.random.default_rng(1)
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.01, rng, clip_dn=13500, scatter_dn=256))
+    frame = read_raw(path)
+    assert np.all(frame.clip_level_tile_dn == 13500)
+    assert read_ldr_frame(path)[:, 50:].min() == 1.0  # clipped in reconstruct's eyes (was 0.82 of white)
+
+
+@pytest.mark.parametrize("make, black, clip, white", [("Canon", 2048, 13584, 15000), ("Nikon", 0, 3880, 4095),
+                                                      ("Pentax", 64, 16300, 16383)])
+def test_other_makes_levels_and_pile_ups(tmp_path, make, black, clip, white):
+    """Canon-like high black and a white level above the pile-up, a 12-bit body, a pile-up just under white."""
+    radiance = _scene() * (clip - black) / 1.0e4
+    bayer = sensor_dn(radiance, 0.01, np.random.default_rng(9), black_dn=(black,) * 4, clip_dn=clip)
+    frame = read_raw(write_dng(tmp_path / "f.dng", bayer, black_dn=(black,) * 4, white_dn=white, make=make))
+    assert np.all(frame.clip_level_tile_dn == clip) and frame.metadata.white_level_dn == white
+    assert frame.metadata.camera_model.startswith(make) and read_ldr_frame(frame.metadata.path)[:, 50:].min() == 1.0
+
+
+def test_no_pile_up_means_the_metadata_white_level():
+    rng = np.random.default_rng(2)
+    ramp = np.linspace(512, 16300, 200_000) + rng.normal(0, 40, 200_000)  # a smooth bright area near white
+    samples = np.clip(np.round(ramp), 0, 16383).astype(np.uint16)
+    assert channel_clip_level(samples, 512, 16383) == 16383
+    samples[:10] = 14000  # ten hot pixels at one value are no pile-up
+    assert channel_clip_level(samples, 512, 16383) == 16383
+    samples[:200] = 14000  # two hundred are
+    assert channel_clip_level(samples, 512, 16383) == 14000
+
+
+def test_merge_treats_samples_at_the_pile_up_as_clipped(tmp_path):
+    """Long frame clipped at 13 500 DN under a white of 16 383: its clipped samples must not enter the merge
+    (taken at face value they give 13 000 / 0.016 s, 0.41 of the truth)."""
+    rng = np.random.default_rng(3)
+    radiance = _scene()
+    for name, exposure in (("short.dng", 0.002), ("long.dng", 0.016)):
+        write_dng(tmp_path / name, sensor_dn(radiance, exposure, rng, clip_dn=13500), exposure_s=exposure)
+    frames = [read_raw(tmp_path / "short.dng"), read_raw(tmp_path / "long.dng")]
+    merge = merge_bayer(frames, CAMERA, estimate_ratios=False)
+    assert np.all(merge.clip_level_tile_dn == 13500)
+    to_dn_per_s = 1.0 / merge.to_relative
+    bright = merge.rate[:, 56:] * to_dn_per_s
+    assert abs(float(np.median(bright)) / 2.0e6 - 1) < 0.02
+    assert merge.usable_frames[:, 56:].max() == 1  # only the short frame
+    image = fuse([tmp_path], CAMERA)
+    assert abs(float(np.median(image.merge.rate[:, 56:] * to_dn_per_s)) / 2.0e6 - 1) < 0.02
+
+
+# -- layouts and quirks --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("cfa", ["RGGB", "BGGR", "GRBG", "GBRG"])
+def test_cfa_layouts_and_per_channel_black_levels_are_read_as_written(tmp_path, cfa):
+    bayer = sensor_dn(_scene(), 0.004, np.random.default_rng(4), black_dn=(500, 510, 520, 530))
+    frame = read_raw(write_dng(tmp_path / "f.dng", bayer, cfa=cfa, black_dn=(500, 510, 520, 530)))
+    assert frame.metadata.cfa_pattern == cfa and frame.metadata.black_level_dn == (500, 510, 520, 530)
+    assert np.array_equal(frame.bayer_dn, bayer)
+
+
+def test_x_trans_is_refused_clearly(tmp_path):
+    bayer = sensor_dn(_scene(60, 96), 0.004, np.random.default_rng(5))
+    with pytest.raises(InputError, match="X-Trans"):
+        read_raw_metadata(write_dng(tmp_path / "xtrans.dng", bayer, cfa=XTRANS, make="Fujifilm", model="X-T3"))
+
+
+def test_a_truncated_dng_is_refused(tmp_path):
+    bayer = sensor_dn(_scene(), 0.004, np.random.default_rng(6))
+    path = write_dng(tmp_path / "f.dng", bayer, truncate_to=9000)
+    with pytest.raises(InputError, match="truncated"):
+        read_raw(path)
+
+
+@pytest.mark.parametrize("matrix", [np.zeros((3, 3)), None])
+def test_a_zero_or_missing_colour_matrix_falls_back_to_camera_rgb_with_a_warning(tmp_path, matrix):
+    rng = np.random.default_rng(7)
+    for name, exposure in (("a.dng", 0.002), ("b.dng", 0.008)):
+        write_dng(tmp_path / name, sensor_dn(_scene(), exposure, rng), exposure_s=exposure, colour_matrix=matrix,
+                  make="Obscura", model="Prototype")
+    assert read_raw_metadata(tmp_path / "a.dng").colour_matrix_source == NO_COLOUR_MATRIX
+    with pytest.warns(UserWarning, match="camera RGB"):
+        image = fuse([tmp_path], CAMERA)
+    assert image.colour == "camera RGB" and np.isfinite(image.rgb).all()
+
+
+def test_fuse_cli_on_a_zero_colour_matrix_exits_0_with_a_warning(tmp_path, capsys):
+    rng = np.random.default_rng(8)
+    for name, exposure in (("a.dng", 0.002), ("b.dng", 0.008)):
+        write_dng(tmp_path / name, sensor_dn(_scene(), exposure, rng), exposure_s=exposure,
+                  colour_matrix=np.zeros((3, 3)))
+    with pytest.warns(UserWarning, match="camera RGB"):  # the CLI prints it as "hdrcam: warning: ..."
+        assert main(["fuse", str(tmp_path), "--out", str(tmp_path / "hdr.exr")]) == 0
+    assert "error" not in capsys.readouterr().err
