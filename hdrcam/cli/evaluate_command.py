@@ -8,7 +8,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 
 
 def register(commands) -> None:
@@ -52,8 +52,7 @@ def run(arguments: argparse.Namespace) -> int:
 
     if arguments.size % 16:
         raise InputError(f"--size must be a multiple of 16, got {arguments.size}")
-    for name in OUTPUT_NAMES:
-        check_writable(arguments.out / name, overwrite=arguments.overwrite)
+    check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite)
     models = {label: load_model(path, vgg_weights=arguments.vgg_weights)
               for label, path in _labelled(arguments.checkpoint).items()}
     psf = load_psf(arguments.psf) if arguments.psf else None

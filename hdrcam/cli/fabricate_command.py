@@ -12,7 +12,7 @@ import torch
 from hdrcam import __version__
 from hdrcam.cli.arguments import add_profile_option, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable, write_text_atomic
+from hdrcam.io.atomic import check_outputs, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
@@ -48,8 +48,7 @@ def run(arguments: argparse.Namespace) -> int:
                **{f"mask{b}": arguments.out / f"mask_{b + 1}_of_{masks_count}.png" for b in range(masks_count)}}
     if arguments.simulate:
         outputs["psf"] = arguments.out / "psf_quantised.exr"
-    for path in outputs.values():
-        check_writable(path, overwrite=arguments.overwrite, inputs=[arguments.heightmap])
+    check_outputs(outputs.values(), overwrite=arguments.overwrite, inputs=[arguments.heightmap])
 
     source = load_heightmap(arguments.heightmap, profile.doe.aperture_m)
     heights = source.heights_m.numpy().astype(np.float64)

@@ -16,7 +16,7 @@ import numpy as np
 
 from hdrcam.cli.arguments import positive_float, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 
 
 def register(commands) -> None:
@@ -48,8 +48,7 @@ def run(arguments: argparse.Namespace) -> int:
         raise InputError("--clipped-fraction must lie between 0 and 1")
     outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
     scene_inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
-    for path in outputs:
-        check_writable(path, overwrite=arguments.overwrite, inputs=scene_inputs)
+    check_outputs(outputs, overwrite=arguments.overwrite, inputs=scene_inputs)
     model = load_model(arguments.checkpoint) if arguments.checkpoint or not arguments.psf else None
     profile = load_profile(model.profile if model else "simulated")
     if arguments.psf:

@@ -19,7 +19,7 @@ import numpy as np
 import OpenEXR
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path
+from hdrcam.io.atomic import atomic_path, os_error_from_message
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
 _REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
@@ -147,5 +147,8 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
     for key, value in (attributes or {}).items():
         header[key] = value.item() if isinstance(value, np.generic) else value
     with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        OpenEXR.File(header, channels).write(str(temporary))
+        try:
+            OpenEXR.File(header, channels).write(str(temporary))
+        except RuntimeError as error:  # OpenEXR reports a full disk or a file-size limit as text
+            raise (os_error_from_message(str(error), Path(path)) or error) from None
     return Path(path)

@@ -11,6 +11,7 @@ Writes are atomic: a crash mid-write leaves the previous checkpoint intact.
 from __future__ import annotations
 
 import dataclasses
+import io
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +29,10 @@ SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "checkpoints" / "s
 
 def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:
     """Write ``state`` (see the module docstring) atomically."""
+    serialised = io.BytesIO()  # torch.save to a path reports a full disk as a RuntimeError without the cause
+    torch.save({"format": CHECKPOINT_FORMAT, **state}, serialised)
     with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        torch.save({"format": CHECKPOINT_FORMAT, **state}, temporary)
+        temporary.write_bytes(serialised.getbuffer())
     return Path(path)
 
 
