@@ -44,6 +44,15 @@ class TooLargeError(InputError):
     """A size would need more memory (or elements) than the machine has; refused before allocating."""
 
 
+class StepFailed(HdrcamError):
+    """A command run inside another (``demo``) failed and has already said why on stderr; the outer command
+    ends with the same exit status and no second line."""
+
+    def __init__(self, status: int):
+        super().__init__(f"a step failed with exit status {status}")
+        self.status = status
+
+
 class Interrupted(KeyboardInterrupt):
     """A termination signal (SIGTERM, SIGHUP) raised as an exception, like SIGINT's KeyboardInterrupt, so the
     same cleanup runs: temporary files removed, a capture's manifest written."""

@@ -13,7 +13,8 @@ import traceback
 import warnings
 
 from hdrcam import __version__
-from hdrcam.errors import EXIT_BUG, EXIT_FAILURE, EXIT_USAGE, HdrcamError, Interrupted, failure_message, one_line
+from hdrcam.errors import (EXIT_BUG, EXIT_FAILURE, EXIT_USAGE, HdrcamError, Interrupted, StepFailed,
+                           failure_message, one_line)
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -50,6 +51,8 @@ def main(argv: list[str] | None = None) -> int:
             status = int(arguments.run(arguments) or 0)
             sys.stdout.flush()  # a full or closed stdout is a failure of this command, not of the interpreter
             return status
+        except StepFailed as failure:  # the step has printed its own line
+            return failure.status
         except KeyboardInterrupt as interrupt:
             number = getattr(interrupt, "signal_number", signal.SIGINT)
             _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")

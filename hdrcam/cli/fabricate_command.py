@@ -23,6 +23,9 @@ from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.profiles import load_profile
 
 
+MAX_LEVELS = 2 ** 16  # 16 binary masks; a level histogram of 2^40 bins alone would need 8 TB
+
+
 def register(commands) -> None:
     parser = commands.add_parser("fabricate", help="quantise a height map into lithography masks",
                                  description=__doc__)
@@ -40,8 +43,9 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(arguments.profile)
     levels = arguments.levels or profile.doe.levels
-    if levels < 2 or levels & (levels - 1):
-        raise InputError(f"--levels must be a power of two >= 2, got {levels}")
+    if levels < 2 or levels & (levels - 1) or levels > MAX_LEVELS:
+        raise InputError(f"--levels must be a power of two from 2 to {MAX_LEVELS} ({MAX_LEVELS.bit_length() - 1} "
+                         f"masks), got {levels}")
     masks_count = levels.bit_length() - 1
     outputs = {"heightmap": arguments.out / "heightmap_quantised.exr",
                "report_json": arguments.out / "report.json", "report_md": arguments.out / "report.md",

@@ -20,8 +20,10 @@ import OpenEXR
 
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path, os_error_from_message
+from hdrcam.limits import check_image_size
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
+DECODED_BYTES_PER_SAMPLE = 12  # the decoded float32 plane, its full-resolution copy and one working copy
 _REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 # Header keys that OpenEXR manages itself; everything else is a user attribute.
 _STRUCTURAL_KEYS = {
@@ -61,6 +63,8 @@ def read_exr(path: Path) -> ExrImage:
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     try:
+        with OpenEXR.File(str(path), header_only=True) as header_file:
+            _check_decoded_size(path, header_file.header())
         with OpenEXR.File(str(path), separate_channels=True) as exr_file:
             header = dict(exr_file.header())
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
@@ -81,6 +85,15 @@ def read_exr(path: Path) -> ExrImage:
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
     return ExrImage(channels=channels, attributes=attributes)
+
+
+def _check_decoded_size(path: Path, header: dict) -> None:
+    """Refuse, from the header alone, an image whose pixels would not fit in memory."""
+    window_min, window_max = header["dataWindow"]
+    height, width = int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1
+    channels = max(len(header.get("channels", ())), 1)
+    check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,
+                     "use a smaller image")
 
 
 def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, height: int, width: int,
