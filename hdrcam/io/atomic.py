@@ -43,7 +43,28 @@ def check_writable(path: Path, *, overwrite: bool = False, inputs: Iterable[Path
         raise OutputExistsError(f"{path} is a folder where an output file is expected; give a file path")
     if os.path.lexists(path) and not overwrite:
         raise OutputExistsError(f"{path} already exists; choose another output or pass --overwrite")
+    check_destination_folder(path.parent)
     return path
+
+
+def check_destination_folder(folder: Path) -> None:
+    """Raise the OSError that writing into ``folder`` would meet, before any work: its nearest existing
+    ancestor must be a folder this process may write to (the rest is created)."""
+    ancestor = Path(os.path.abspath(folder))
+    while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not os.path.isdir(ancestor):
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(ancestor))
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        code = errno.EROFS if _read_only_file_system(ancestor) else errno.EACCES
+        raise OSError(code, os.strerror(code), str(ancestor))
+
+
+def _read_only_file_system(folder: Path) -> bool:
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 def check_outputs(paths: Iterable[Path], *, overwrite: bool = False, inputs: Iterable[Path] = ()) -> list[Path]:

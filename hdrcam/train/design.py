@@ -139,7 +139,9 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     trained = _maybe_distributed(model, world, device)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=True)
+        # a new run claims the folder with config.json (published without replacing: a second run started
+        # into it at the same time fails here); the run's later files are its own
+        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=resume)
         log_lines = _log_lines(out / "log.jsonl", start)
     progress = Progress(min(config.steps, start + (stop_after or config.steps)) - start, f"design {out.name}") if rank == 0 and not quiet else None
     margin, last = model.capture.margin_px, {}
