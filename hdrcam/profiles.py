@@ -294,6 +294,9 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
         snr_percentile=calibration_table.number("snr_percentile", default=5.0, maximum=100.0),
     )
     calibration_table.finish()
+    if abs(round(calibration.ev_step * 3) - calibration.ev_step * 3) > 0.01:
+        raise ProfileError(f"{path}: [calibration] ev_step: must be a multiple of 1/3 EV (the shutter's notches), "
+                           f"got {calibration.ev_step}")
     for key in ("point_source_distance_m", "focus_distance_m"):
         if getattr(calibration, key) <= lens.focal_length_m:
             raise ProfileError(f"{path}: [calibration] {key}: {getattr(calibration, key)} m is not beyond the focal "

@@ -12,7 +12,8 @@ from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.capture.notches import nearest_shutter
 from hdrcam.capture.scene import load_scene
 from hdrcam.capture.simulated import simulation_psf
-from hdrcam.cli.arguments import add_profile_option, exposure_seconds, integers, positive_float, positive_int
+from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
+                                  thirds_of_ev)
 from hdrcam.errors import InputError, OutputExistsError
 from hdrcam.profiles import load_profile
 
@@ -26,7 +27,8 @@ def register(commands) -> None:
     add_profile_option(parser)
     parser.add_argument("--out", type=Path, required=True, help="new folder for the frames and bracket.json")
     parser.add_argument("--stops", type=positive_int, default=None, help="number of exposures (--auto: at most)")
-    parser.add_argument("--ev-step", type=positive_float, default=None, help="EV between exposures (1/3 steps)")
+    parser.add_argument("--ev-step", type=thirds_of_ev, default=None,
+                        help="EV between exposures, a multiple of 1/3 (e.g. 1, 2/3, 3)")
     parser.add_argument("--shortest", type=exposure_seconds, default=1 / 4000, metavar="S",
                         help="shortest exposure, e.g. 1/4000 (--auto: the first one tried)")
     parser.add_argument("--iso", type=positive_float, default=100.0, help="ISO (default 100)")

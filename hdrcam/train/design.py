@@ -29,7 +29,7 @@ from torch import nn
 from hdrcam.data.scenes import SceneSource
 from hdrcam.errors import InputError
 from hdrcam.limits import check_memory
-from hdrcam.io.atomic import write_text_atomic
+from hdrcam.io.atomic import check_destination_folder, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.energy import energy_regulariser
@@ -111,6 +111,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     if resume and not checkpoint_path.exists():
         raise InputError(f"--resume: {checkpoint_path} does not exist")
+    check_destination_folder(out)  # before the model is built: an unusable --out fails at once
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:
         steps = config.steps

@@ -1,0 +1,87 @@
+"""Captures stopped by SIGTERM or SIGINT, resumed, and started twice at once into one folder (real processes)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
+from tests.faults.helpers import assert_failed_with_one_line, run, temporaries
+
+LONG_CAPTURE = ["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--size",
+                "512x384", "--stops", "24", "--ev-step", "1/3"]
+
+
+def start(argv: list, **options) -> subprocess.Popen:
+    environment = dict(os.environ, OMP_NUM_THREADS="1")
+    return subprocess.Popen([sys.executable, "-m", "hdrcam", *map(str, argv)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=environment, **options)
+
+
+def frames_listed(folder: Path) -> int:
+    try:
+        return len(json.loads((folder / MANIFEST_NAME).read_text())["frames"])
+    except (OSError, ValueError, KeyError):
+        return 0
+
+
+def stop_after_two_frames(process: subprocess.Popen, folder: Path, number: int) -> tuple[int, str]:
+    deadline = time.monotonic() + 60
+    while frames_listed(folder) < 2 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert process.poll() is None, "the capture ended before it could be stopped"
+    process.send_signal(number)
+    _, stderr = process.communicate(timeout=60)
+    return process.returncode, stderr
+
+
+def assert_every_frame_on_disk_is_listed(folder: Path) -> None:
+    bracket = load_bracket(folder)
+    on_disk = sorted(p.name for p in folder.iterdir() if p.suffix == ".dng")
+    assert sorted(frame.file for frame in bracket.frames) == on_disk
+    assert all(sha256_of(folder / frame.file) == frame.sha256 for frame in bracket.frames)
+    assert temporaries(folder) == []
+
+
+@pytest.mark.parametrize("number", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_capture_lists_every_frame_and_resumes_to_a_complete_bracket(number, tmp_path, capsys):
+    out = tmp_path / "bracket"
+    status, stderr = stop_after_two_frames(start(LONG_CAPTURE + ["--out", out]), out, number)
+    assert status == 128 + number
+    lines = [line for line in stderr.splitlines() if "interrupted" in line or "error" in line]
+    assert len(lines) == 1 and signal.Signals(number).name in lines[0] and "Traceback" not in stderr
+    bracket = load_bracket(out)
+    assert bracket.status == "incomplete" and signal.Signals(number).name in bracket.error
+    assert len(bracket.frames) >= 2
+    assert_every_frame_on_disk_is_listed(out)
+    kept = {frame.file: frame.sha256 for frame in bracket.frames}
+
+    other_plan = LONG_CAPTURE[:-4] + ["--stops", "23", "--ev-step", "1/3", "--resume", "--out", out]
+    assert_failed_with_one_line(run(other_plan, capsys), 1, str(out / MANIFEST_NAME), "plan")
+    assert_failed_with_one_line(run(LONG_CAPTURE + ["--out", out], capsys), 1, "--resume")  # never overwritten
+    assert run(LONG_CAPTURE + ["--resume", "--out", out], capsys)[0] == 0
+    bracket = load_bracket(out)
+    assert bracket.status == "complete" and len(bracket.frames) == 24
+    assert all(frame.sha256 == kept[frame.file] for frame in bracket.frames if frame.file in kept)
+    assert_every_frame_on_disk_is_listed(out)
+
+
+def test_two_captures_started_at_once_into_one_folder_never_mix_or_overwrite(tmp_path):
+    out = tmp_path / "bracket"
+    argv = LONG_CAPTURE[:-4] + ["--stops", "3", "--out", out]
+    first, second = start(argv), start(argv + ["--seed", "1"])
+    results = [(p.wait(timeout=120), p.stderr.read()) for p in (first, second)]
+    statuses = sorted(status for status, _ in results)
+    assert statuses == [0, 1], results
+    refusal = next(stderr for status, stderr in results if status == 1)
+    assert len(refusal.strip().splitlines()) == 1 and str(out / MANIFEST_NAME) in refusal
+    bracket = load_bracket(out)
+    assert bracket.status == "complete" and len(bracket.frames) == 3
+    assert_every_frame_on_disk_is_listed(out)
