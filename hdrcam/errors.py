@@ -54,8 +54,8 @@ class StepFailed(HdrcamError):
 
 
 class Interrupted(KeyboardInterrupt):
-    """A termination signal (SIGTERM, SIGHUP) raised as an exception, like SIGINT's KeyboardInterrupt, so the
-    same cleanup runs: temporary files removed, a capture's manifest written."""
+    """A signal (SIGINT, SIGTERM, SIGHUP) raised as an exception, so that cleanup runs: temporary files
+    removed, a capture's manifest written."""
 
     def __init__(self, signal_number: int):
         super().__init__(signal.Signals(signal_number).name)

@@ -85,7 +85,11 @@ class _GuardedOutput:
         self._stream = stream
 
     def write(self, text: str) -> int:
-        return self._guarded(self._stream.write, text)
+        try:
+            return self._guarded(self._stream.write, text)
+        except UnicodeEncodeError:  # a file name that is not valid in the terminal's encoding: escape it
+            encoding = getattr(self._stream, "encoding", None) or "utf-8"
+            return self._guarded(self._stream.write, text.encode(encoding, "backslashreplace").decode(encoding))
 
     def flush(self) -> None:
         return self._guarded(self._stream.flush)
@@ -117,8 +121,9 @@ def _stdout_guarded():
 
 @contextlib.contextmanager
 def termination_signals_raised():
-    """SIGTERM and SIGHUP raise :class:`hdrcam.errors.Interrupted` (as SIGINT raises KeyboardInterrupt) while
-    a command runs, so every ``finally`` and cleanup handler runs before the process ends."""
+    """SIGINT, SIGTERM and SIGHUP raise :class:`hdrcam.errors.Interrupted` (a KeyboardInterrupt) while a command
+    runs, so every ``finally`` and cleanup handler runs before the process ends; the previous handlers return
+    afterwards."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -126,7 +131,8 @@ def termination_signals_raised():
     def raise_interrupted(number, frame):
         raise Interrupted(number)
 
-    previous = {number: signal.signal(number, raise_interrupted) for number in (signal.SIGTERM, signal.SIGHUP)}
+    previous = {number: signal.signal(number, raise_interrupted) for number in (signal.SIGINT, signal.SIGTERM,
+                                                                             signal.SIGHUP)}
     try:
         yield
     finally:

@@ -155,14 +155,6 @@ def _name_the_output(error: OSError, path: Path, temporary: Path | None) -> None
             error.filename2 = None
 
 
-def os_error_from_message(message: str, path: Path) -> OSError | None:
-    """The OSError that a library reported only as text (OpenEXR: '... File too large.'), naming ``path``."""
-    for code in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EACCES, errno.EROFS):
-        if os.strerror(code) in message:
-            return OSError(code, os.strerror(code), str(path))
-    return None
-
-
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

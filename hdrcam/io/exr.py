@@ -11,6 +11,7 @@ range (65504) instead of silently storing Inf.
 from __future__ import annotations
 
 import dataclasses
+import io
 import warnings
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,7 @@ import numpy as np
 import OpenEXR
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path, os_error_from_message
+from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.limits import check_image_size
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
@@ -62,10 +63,11 @@ def read_exr(path: Path) -> ExrImage:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
+    data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     try:
-        with OpenEXR.File(str(path), header_only=True) as header_file:
+        with OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
             _check_decoded_size(path, header_file.header())
-        with OpenEXR.File(str(path), separate_channels=True) as exr_file:
+        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
             header = dict(exr_file.header())
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
                             for name, channel in exr_file.channels().items()}
@@ -158,10 +160,10 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
     channels = {name: np.ascontiguousarray(planes[..., index].astype(dtype)) for index, name in enumerate(names)}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
-        header[key] = value.item() if isinstance(value, np.generic) else value
-    with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        try:
-            OpenEXR.File(header, channels).write(str(temporary))
-        except RuntimeError as error:  # OpenEXR reports a full disk or a file-size limit as text
-            raise (os_error_from_message(str(error), Path(path)) or error) from None
-    return Path(path)
+        value = value.item() if isinstance(value, np.generic) else value
+        if isinstance(value, str):  # a file name that is not UTF-8 is stored with its odd bytes escaped
+            value = value.encode("utf-8", "backslashreplace").decode("utf-8")
+        header[key] = value
+    encoded = io.BytesIO()  # in memory, then written by Python: any file name works, a full disk names its cause
+    OpenEXR.File(header, channels).write(encoded)
+    return write_bytes_atomic(Path(path), encoded.getvalue(), overwrite=overwrite)

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path
+from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import load_vgg19
@@ -31,9 +31,7 @@ def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:
     """Write ``state`` (see the module docstring) atomically."""
     serialised = io.BytesIO()  # torch.save to a path reports a full disk as a RuntimeError without the cause
     torch.save({"format": CHECKPOINT_FORMAT, **state}, serialised)
-    with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        temporary.write_bytes(serialised.getbuffer())
-    return Path(path)
+    return write_bytes_atomic(Path(path), serialised.getvalue(), overwrite=overwrite)
 
 
 def read_checkpoint(path: Path) -> dict:
