@@ -1,7 +1,9 @@
-"""Captures stopped by SIGTERM or SIGINT and resumed; two captures started at once into one folder (processes)."""
+"""Captures stopped by SIGTERM, SIGINT, a full disk or a refusal, and resumed; two captures started at once into one
+folder (processes)."""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import signal
@@ -97,4 +99,56 @@ def test_two_captures_started_at_once_into_one_folder_never_mix_or_overwrite(tmp
     assert len(refusal.strip().splitlines()) == 1 and str(out / MANIFEST_NAME) in refusal
     bracket = load_bracket(out)
     assert bracket.status == "complete" and len(bracket.frames) == 3
+    assert_every_frame_on_disk_is_listed(out)
+
+
+def test_a_disk_failure_mid_capture_leaves_a_manifest_listing_the_frames_taken(tmp_path, capsys, monkeypatch):
+    from hdrcam.capture.simulated import SimulatedCamera
+
+    capture, calls = SimulatedCamera.capture, []
+
+    def disk_full_on_the_second_frame(self, folder, stem, *, dark=False):
+        calls.append(stem)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(folder / f"{stem}.dng"))
+        return capture(self, folder, stem, dark=dark)
+
+    monkeypatch.setattr(SimulatedCamera, "capture", disk_full_on_the_second_frame)
+    out = tmp_path / "bracket"
+    argv = LONG_CAPTURE[:-5] + ["64x48", "--stops", "3", "--out", out]
+    assert_failed_with_one_line(run(argv, capsys), 1, str(out / "frame-01.dng"), "no space left")
+    bracket = load_bracket(out)
+    assert bracket.status == "incomplete" and "no space left" in bracket.error
+    assert [frame.file for frame in bracket.frames] == ["frame-00.dng"]
+    assert_every_frame_on_disk_is_listed(out)
+
+
+def test_a_capture_refused_part_way_keeps_and_lists_its_frames(tmp_path, capsys):
+    out = tmp_path / "bracket"
+    argv = LONG_CAPTURE[:-5] + ["64x48", "--stops", "3", "--auto", "--roi", "500,500,10,10", "--out", out]
+    assert_failed_with_one_line(run(argv, capsys), 1, "region of interest")
+    bracket = load_bracket(out)
+    assert bracket.status == "incomplete" and "region of interest" in bracket.error and len(bracket.frames) == 1
+    assert_every_frame_on_disk_is_listed(out)
+
+
+def test_a_frame_written_just_before_the_interrupt_is_listed(tmp_path, capsys, monkeypatch):
+    """SIGINT after the camera wrote frame-01 but before the bracket recorded it: the manifest still lists it."""
+    from hdrcam.capture.simulated import SimulatedCamera
+
+    capture = SimulatedCamera.capture
+
+    def interrupted_after_the_second_write(self, folder, stem, *, dark=False):
+        frame = capture(self, folder, stem, dark=dark)
+        if stem == "frame-01":
+            raise KeyboardInterrupt
+        return frame
+
+    monkeypatch.setattr(SimulatedCamera, "capture", interrupted_after_the_second_write)
+    out = tmp_path / "bracket"
+    argv = LONG_CAPTURE[:-5] + ["64x48", "--stops", "3", "--out", out]
+    assert_failed_with_one_line(run(argv, capsys), 130, "interrupted")
+    bracket = load_bracket(out)
+    assert [frame.file for frame in bracket.frames] == ["frame-00.dng", "frame-01.dng"]
+    assert any("frame-01.dng was written as the capture stopped" in note for note in bracket.notes)
     assert_every_frame_on_disk_is_listed(out)
