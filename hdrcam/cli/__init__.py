@@ -46,27 +46,27 @@ def main(argv: list[str] | None = None) -> int:
     arguments = parser.parse_args(argv)
     warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {one_line(str(message))}\n"
     name = f"hdrcam {arguments.command}"
-    with termination_signals_raised(), _stdout_guarded():
-        try:
+    try:
+        with termination_signals_raised(), _stdout_guarded():
             status = int(arguments.run(arguments) or 0)
             sys.stdout.flush()  # a full or closed stdout is a failure of this command, not of the interpreter
-            return status
-        except StepFailed as failure:  # the step has printed its own line
-            return failure.status
-        except KeyboardInterrupt as interrupt:
-            number = getattr(interrupt, "signal_number", signal.SIGINT)
-            _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
-            return 128 + number
-        except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
-            if os.environ.get("HDRCAM_DEBUG"):
-                traceback.print_exc()
-            message = failure_message(error)
-            if message is not None:
-                _report(f"{name}: error: {message}")
-                return EXIT_FAILURE
-            _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
-                    "traceback that HDRCAM_DEBUG=1 shows)")
-            return EXIT_BUG
+        return status
+    except StepFailed as failure:  # the step has printed its own line
+        return failure.status
+    except KeyboardInterrupt as interrupt:
+        number = getattr(interrupt, "signal_number", signal.SIGINT)
+        _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
+        return 128 + number
+    except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
+        if os.environ.get("HDRCAM_DEBUG"):
+            traceback.print_exc()
+        message = failure_message(error)
+        if message is not None:
+            _report(f"{name}: error: {message}")
+            return EXIT_FAILURE
+        _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
+                "traceback that HDRCAM_DEBUG=1 shows)")
+        return EXIT_BUG
 
 
 def _report(line: str) -> None:
