@@ -7,6 +7,7 @@ default silently). Errors name the file, the section and the key. Lengths are in
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,12 @@ DEFAULT_PROFILE = "sony-a7-zeiss50-rank1"
 CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 DOE_KINDS = ("rank1", "freeform", "none")
 PROPAGATION_MODELS = ("fresnel", "angular_spectrum", "fraunhofer")
+# Plausible ranges: a value outside them is a unit or typing mistake (metres, not millimetres), not a camera.
+WAVELENGTH_RANGE_M = (200e-9, 2000e-9)
+PIXEL_PITCH_RANGE_M = (0.3e-6, 100e-6)
+FOCAL_LENGTH_RANGE_M = (1e-3, 10.0)
+MAX_SENSOR_SIDE_PX = 100_000
+MAX_LEVELS = 2 ** 16
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,17 +125,23 @@ class _Section:
         return ProfileError(f"{self.source}: [{self.name}] {key}: {message}")
 
     def number(self, key: str, *, positive: bool = True, integer: bool = False, default: Any = None,
-               maximum: float | None = None):
+               minimum: float | None = None, maximum: float | None = None, infinite: bool = False):
+        """A number (``integer``: an int); finite unless ``infinite`` (a distance may be inf), positive
+        unless told otherwise, within [minimum, maximum] where given."""
         value = self.table.pop(key, default)
         if value is None:
             raise self.fail(key, "is required")
         kinds = (int,) if integer else (int, float)
         if isinstance(value, bool) or not isinstance(value, kinds):
             raise self.fail(key, f"expected {'an integer' if integer else 'a number'}, got {value!r}")
+        if math.isnan(value) or (math.isinf(value) and not (infinite and value > 0)):
+            raise self.fail(key, f"must be a finite number, got {value!r}")
         if positive and not value > 0:
             raise self.fail(key, f"must be positive, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise self.fail(key, f"must be at least {minimum:g}, got {value!r}")
         if maximum is not None and value > maximum:
-            raise self.fail(key, f"must be at most {maximum}, got {value!r}")
+            raise self.fail(key, f"must be at most {maximum:g}, got {value!r}")
         return value if integer else float(value)
 
     def text(self, key: str, *, choices: tuple[str, ...] | None = None, default: str | None = None) -> str:
@@ -142,14 +155,49 @@ class _Section:
     def band(self, key: str) -> tuple[float, float]:
         value = self.table.pop(key, None)
         if (not isinstance(value, list) or len(value) != 2
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in value)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                           and WAVELENGTH_RANGE_M[0] <= v <= WAVELENGTH_RANGE_M[1] for v in value)
                 or not value[0] <= value[1]):
-            raise self.fail(key, f"expected [shortest, longest] positive wavelengths in metres, got {value!r}")
+            raise self.fail(key, f"expected [shortest, longest] wavelengths in metres within "
+                                 f"{WAVELENGTH_RANGE_M[0]:g} .. {WAVELENGTH_RANGE_M[1]:g}, got {value!r}")
         return float(value[0]), float(value[1])
 
     def finish(self) -> None:
         if self.table:
             raise self.fail(", ".join(sorted(self.table)), "unknown key")
+
+
+def _check_simulation(path: Path, camera: CameraSpec, lens: LensSpec, doe: DoeSpec,
+                      simulation: SimulationSpec) -> None:
+    """Values that are each in range but do not fit together."""
+    from hdrcam.optics.grid import max_unaliased_pitch_m
+
+    def fail(section: str, key: str, message: str) -> ProfileError:
+        return ProfileError(f"{path}: [{section}] {key}: {message}")
+
+    centres = [sum(band) / 2 for band in simulation.band_edges_m]
+    if not centres[0] > centres[1] > centres[2]:
+        raise fail("simulation", "red_band_m, green_band_m, blue_band_m", "bands must go from long (red) to short "
+                   f"(blue) wavelengths, got centres {', '.join(f'{c * 1e9:g} nm' for c in centres)}")
+    if simulation.psf_size_px % 2 == 0:
+        raise fail("simulation", "psf_size_px", f"must be odd (the optical axis is the centre pixel), got "
+                   f"{simulation.psf_size_px}")
+    if 2 * simulation.energy_centre_radius_px + 1 > simulation.psf_size_px:
+        raise fail("simulation", "energy_centre_radius_px", f"a centre of {2 * simulation.energy_centre_radius_px + 1}"
+                   f" px does not fit in the {simulation.psf_size_px} px PSF")
+    shortest_m = min(band[0] for band in simulation.band_edges_m)
+    limit_m = max_unaliased_pitch_m(doe.aperture_m, lens.focal_length_m, shortest_m)
+    pitch_m = camera.pixel_pitch_m / max(1, math.ceil(camera.pixel_pitch_m / limit_m - 1e-9))
+    grid_sampled = simulation.propagation != "fraunhofer"  # the chirp-z model samples the features themselves
+    if grid_sampled and doe.kind != "none" and doe.feature_size_m < pitch_m:
+        raise fail("doe", "feature_size_m", f"{doe.feature_size_m:g} m is below the simulation pitch {pitch_m:.4g} m "
+                   "(pixel pitch / the samples per pixel the aperture needs); no simulation could resolve it")
+    if doe.feature_size_m > doe.aperture_m:
+        raise fail("doe", "feature_size_m", f"{doe.feature_size_m:g} m is larger than the DOE aperture "
+                   f"{doe.aperture_m:g} m")
+    features = math.ceil(doe.aperture_m / doe.feature_size_m - 1e-9)
+    if doe.rank > features:
+        raise fail("doe", "rank", f"{doe.rank} is more than the {features} features across the DOE")
 
 
 def resolve_profile_path(name_or_path: str | Path) -> Path:
@@ -177,9 +225,10 @@ def _full_wave(path: Path, doe_table, material: str) -> dict:
         raise ProfileError(f"{path}: [doe] give exactly one of design_wavelength_m (h_max = one wave there) and "
                            f"h_max_m, got {given or 'neither'}")
     if given[0] == "design_wavelength_m":
-        wavelength = doe_table.number("design_wavelength_m", maximum=2e-6)
+        wavelength = doe_table.number("design_wavelength_m", minimum=WAVELENGTH_RANGE_M[0],
+                                      maximum=WAVELENGTH_RANGE_M[1])
         return {"h_max_m": full_wave_height_m(material, wavelength), "design_wavelength_m": wavelength}
-    h_max = doe_table.number("h_max_m")
+    h_max = doe_table.number("h_max_m", maximum=100e-6)
     return {"h_max_m": h_max, "design_wavelength_m": design_wavelength_m(h_max, lambda w: refractive_index(material, w))}
 
 
@@ -198,10 +247,11 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
     camera_table = _Section(path, "camera", sections["camera"])
     camera = CameraSpec(
         model=camera_table.text("model"),
-        pixel_pitch_m=camera_table.number("pixel_pitch_m"),
-        width_px=camera_table.number("width_px", integer=True),
-        height_px=camera_table.number("height_px", integer=True),
-        bit_depth=camera_table.number("bit_depth", integer=True, maximum=16),
+        pixel_pitch_m=camera_table.number("pixel_pitch_m", minimum=PIXEL_PITCH_RANGE_M[0],
+                                          maximum=PIXEL_PITCH_RANGE_M[1]),
+        width_px=camera_table.number("width_px", integer=True, minimum=2, maximum=MAX_SENSOR_SIDE_PX),
+        height_px=camera_table.number("height_px", integer=True, minimum=2, maximum=MAX_SENSOR_SIDE_PX),
+        bit_depth=camera_table.number("bit_depth", integer=True, minimum=8, maximum=16),
         black_level_dn=camera_table.number("black_level_dn", integer=True, positive=False),
         white_level_dn=camera_table.number("white_level_dn", integer=True),
         cfa_pattern=camera_table.text("cfa_pattern", choices=CFA_PATTERNS),
@@ -214,8 +264,10 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
                            f"{camera.black_level_dn}, {camera.white_level_dn}, {camera.bit_depth} bits")
 
     lens_table = _Section(path, "lens", sections["lens"])
-    lens = LensSpec(model=lens_table.text("model"), focal_length_m=lens_table.number("focal_length_m"),
-                    f_number=lens_table.number("f_number"))
+    lens = LensSpec(model=lens_table.text("model"),
+                    focal_length_m=lens_table.number("focal_length_m", minimum=FOCAL_LENGTH_RANGE_M[0],
+                                                     maximum=FOCAL_LENGTH_RANGE_M[1]),
+                    f_number=lens_table.number("f_number", minimum=0.5, maximum=128))
     lens_table.finish()
 
     doe_table = _Section(path, "doe", sections["doe"])
@@ -226,7 +278,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
         aperture_m=doe_table.number("aperture_m"),
         material=material,
         feature_size_m=doe_table.number("feature_size_m"),
-        levels=doe_table.number("levels", integer=True),
+        levels=doe_table.number("levels", integer=True, maximum=MAX_LEVELS),
         **_full_wave(path, doe_table, material),
         rank=doe_table.number("rank", integer=True, default=3),
         substrate_thickness_m=doe_table.number("substrate_thickness_m"),
@@ -251,17 +303,24 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
                                                         default=1),
     )
     simulation_table.finish()
+    _check_simulation(path, camera, lens, doe, simulation)
 
     calibration_table = _Section(path, "calibration", sections["calibration"])
     calibration = CalibrationSpec(
-        point_source_distance_m=calibration_table.number("point_source_distance_m"),
-        focus_distance_m=calibration_table.number("focus_distance_m"),
-        stops=calibration_table.number("stops", integer=True),
-        ev_step=calibration_table.number("ev_step"),
+        point_source_distance_m=calibration_table.number("point_source_distance_m", infinite=True),
+        focus_distance_m=calibration_table.number("focus_distance_m", infinite=True),
+        stops=calibration_table.number("stops", integer=True, maximum=64),
+        ev_step=calibration_table.number("ev_step", maximum=10.0),
         target_snr=calibration_table.number("target_snr", default=20.0),
         snr_percentile=calibration_table.number("snr_percentile", default=5.0, maximum=100.0),
     )
     calibration_table.finish()
-    image_distance_m(lens.focal_length_m, calibration.focus_distance_m)  # raises unless focus distance > f
+    if abs(round(calibration.ev_step * 3) - calibration.ev_step * 3) > 0.01:
+        raise ProfileError(f"{path}: [calibration] ev_step: must be a multiple of 1/3 EV (the shutter's notches), "
+                           f"got {calibration.ev_step}")
+    for key in ("point_source_distance_m", "focus_distance_m"):
+        if getattr(calibration, key) <= lens.focal_length_m:
+            raise ProfileError(f"{path}: [calibration] {key}: {getattr(calibration, key)} m is not beyond the focal "
+                               f"length {lens.focal_length_m} m; nothing there is imaged")
     return Profile(name=name, path=path, camera=camera, lens=lens, doe=doe, simulation=simulation,
                    calibration=calibration)

@@ -42,10 +42,28 @@ def _variant(tmp_path, old: str, new: str):
     ("design_wavelength_m = 550e-9", "design_wavelength_m = 550e-9\nh_max_m = 1.2e-6", "exactly one of"),
     ("design_wavelength_m = 550e-9", "", "exactly one of"),
     ("design_wavelength_m = 550e-9", "design_wavelength_m = 550", "must be at most"),
+    ("pixel_pitch_m = 5.97e-6", "pixel_pitch_m = inf", r"\[camera\] pixel_pitch_m: must be a finite number"),
+    ("full_well_e = 25000.0", "full_well_e = nan", r"\[camera\] full_well_e: must be a finite number"),
+    ("pixel_pitch_m = 5.97e-6", "pixel_pitch_m = 5.97", r"\[camera\] pixel_pitch_m: must be at most"),
+    ("width_px = 1024", "width_px = 10000000", r"\[camera\] width_px: must be at most 100000"),
+    ("feature_size_m = 32.0e-6", "feature_size_m = 1.0e-6", r"\[doe\] feature_size_m: .* below the simulation pitch"),
+    ("feature_size_m = 32.0e-6", "feature_size_m = 4.0e-3", r"\[doe\] feature_size_m: .* larger than the DOE"),
+    ("blue_band_m = [410e-9, 490e-9]", "blue_band_m = [710e-9, 790e-9]", "from long \\(red\\) to short"),
+    ("red_band_m = [610e-9, 690e-9]", "red_band_m = [610, 690]", r"\[simulation\] red_band_m: expected"),
+    ("psf_size_px = 63", "psf_size_px = 64", r"\[simulation\] psf_size_px: must be odd"),
+    ("energy_centre_radius_px = 3", "energy_centre_radius_px = 40", "does not fit"),
+    ("point_source_distance_m = 5.0", "point_source_distance_m = 0.01", "not beyond the focal length"),
+    ("point_source_distance_m = 5.0", "point_source_distance_m = -inf", "must be a finite number"),
+    ("levels = 16", "levels = 1099511627776", r"\[doe\] levels: must be at most 65536"),
 ])
 def test_schema_errors_name_the_key(tmp_path, old, new, message):
     with pytest.raises(ProfileError, match=message):
         load_profile(_variant(tmp_path, old, new))
+
+
+def test_a_source_at_infinity_is_allowed(tmp_path):
+    profile = load_profile(_variant(tmp_path, "point_source_distance_m = 5.0", "point_source_distance_m = inf"))
+    assert profile.calibration.point_source_distance_m == float("inf")
 
 
 def test_unknown_profile_lists_the_known_ones():

@@ -3,22 +3,28 @@
 ``--auto`` starts at the requested shortest exposure and goes shorter, ``ev_step`` at a time, while the
 region of interest has clipped pixels; then longer until its darker pixels (the profile's SNR percentile)
 reach the profile's target SNR under the shot + read noise model, or ``stops`` frames were taken.
-Frames are written atomically; the manifest is written even when a capture fails, saying what happened.
+Frames are written atomically and never over an existing file; the manifest is rewritten after every
+frame and on every way out, saying what happened (see BracketCapture).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import datetime as dt
+import json
 import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from hdrcam.capture.camera import Camera, CapturedFrame
-from hdrcam.capture.manifest import MANIFEST_NAME, Bracket, BracketFrame, sha256_of
+from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
+from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
 from hdrcam.capture.notches import NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, nearest_shutter
-from hdrcam.errors import HdrcamError, OutputExistsError
+from hdrcam.errors import HdrcamError, InputError, Interrupted, failure_message
+from hdrcam.io.atomic import TEMPORARY_SUFFIX
+from hdrcam.io.raw import read_raw
 from hdrcam.profiles import CameraSpec
 from hdrcam.progress import Progress
 
@@ -60,7 +66,14 @@ def frame_statistics(bayer_dn: np.ndarray, camera: CameraSpec, iso: float, plan:
 
 
 class BracketCapture:
-    """Shoots one bracket into a folder and records it in bracket.json."""
+    """Shoots one bracket into a folder and records it in bracket.json.
+
+    The manifest is written before the first frame (claiming the folder: a second capture into the same
+    folder is refused, never mixed in), after every frame, and on every way out - an error, a camera or
+    disk failure, SIGINT or SIGTERM - with ``status`` "incomplete" and the reason, listing every frame on
+    disk. ``resume`` continues an incomplete bracket: frames already on disk (checked against their
+    sha256) are kept and only the missing exposures are shot.
+    """
 
     def __init__(self, camera: Camera, camera_spec: CameraSpec, folder: Path, *, backend: str,
                  profile: str | None, options: dict | None = None, show_progress: bool = True,
@@ -70,19 +83,29 @@ class BracketCapture:
         self.true_exposure_s = true_exposure_s
         self.backend, self.profile, self.options = backend, profile, options or {}
         self.show_progress = show_progress
+        self._taken: dict[int, BracketFrame] = {}  # shutter notch index -> frame already on disk (resume)
+        self._shooting: tuple[str, ExposureSettings] | None = None  # the frame being captured now
 
-    def shoot(self, plan: BracketPlan, *, dark_notches: list[ShutterNotch] | None = None) -> Bracket:
-        """Capture lights per ``plan`` (or darks at ``dark_notches``) and write the manifest."""
-        kind = "dark" if dark_notches is not None else "light"
-        manifest = self.folder / MANIFEST_NAME
-        if manifest.exists():
-            raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out")
+    def new_bracket(self, plan: BracketPlan, kind: str) -> Bracket:
+        """The manifest this capture would write: what ``--resume`` compares with the one on disk."""
         details = self.camera.details() if hasattr(self.camera, "details") else {}  # focus, drive, firmware
-        if kind == "light" and details.get("focus_mode") not in (None, "MF"):
-            warnings.warn(f"focus mode is {details['focus_mode']}: the camera focuses again for every frame, so a "
+        return Bracket(kind=kind, camera={"backend": self.backend, "model": self.camera.model, **details},
+                       profile=self.profile, frames=[], status="incomplete", error=IN_PROGRESS,
+                       options=dict(self.options, plan=dataclasses.asdict(plan)))
+
+    def shoot(self, plan: BracketPlan, *, dark_notches: list[ShutterNotch] | None = None,
+              resume: Bracket | None = None) -> Bracket:
+        """Capture lights per ``plan`` (or darks at ``dark_notches``), continuing ``resume`` if given."""
+        kind = "dark" if dark_notches is not None else "light"
+        bracket = self.new_bracket(plan, kind)
+        focus_mode = bracket.camera.get("focus_mode")
+        if kind == "light" and focus_mode not in (None, "MF"):
+            warnings.warn(f"focus mode is {focus_mode}: the camera focuses again for every frame, so a "
                           "calibration bracket may mix focus positions; focus once and set the lens to MF")
-        bracket = Bracket(kind=kind, camera={"backend": self.backend, "model": self.camera.model, **details},
-                          profile=self.profile, frames=[], options=dict(self.options, plan=dataclasses.asdict(plan)))
+        if resume is not None:
+            bracket = self._continued(resume, bracket)
+        else:
+            bracket.write(self.folder)  # refuses (OutputExistsError) if another capture holds the folder
         try:
             if plan.iso is not None:
                 self.camera.set_exposure(iso=plan.iso)
@@ -92,17 +115,68 @@ class BracketCapture:
                 self._auto(bracket, plan)
             else:
                 self._fixed(bracket, bracket_notches(plan.shortest_s, plan.stops, plan.ev_step), dark=False)
-        except (HdrcamError, KeyboardInterrupt) as error:
-            bracket.status, bracket.error = "failed", str(error) or type(error).__name__
-            self._finish(bracket)
+        except BaseException as error:
+            bracket.status, bracket.error = "incomplete", _stop_reason(error)
+            self._list_frame_being_written(bracket)
+            with contextlib.suppress(Exception):  # the first failure is the one to report (a full disk, say)
+                self._finish(bracket)
             raise
+        bracket.status, bracket.error = "complete", None
         self._finish(bracket)
         return bracket
+
+    def _continued(self, saved: Bracket, bracket: Bracket) -> Bracket:
+        """``saved`` (an incomplete bracket of this folder) after checking it was shot the same way."""
+        manifest = self.folder / MANIFEST_NAME
+        if saved.status == "complete":
+            raise InputError(f"{manifest}: the capture is complete; nothing to resume")
+        for what, old, new in (("kind", saved.kind, bracket.kind), ("camera", saved.camera, bracket.camera),
+                               ("profile", saved.profile, bracket.profile)):
+            if old != new:
+                raise InputError(f"--resume: {manifest} was shot with {what} {old}, this run has {new}; resume "
+                                 "with the same camera, profile and options, or choose another --out")
+        for key in sorted(set(saved.options) | set(bracket.options)):
+            old, new = saved.options.get(key), bracket.options.get(key)
+            if old != new:
+                raise InputError(f"--resume: {manifest} was shot with {key} {json.dumps(old)}, this run asks "
+                                 f"for {json.dumps(new)}; resume with the same options, or choose another --out")
+        for frame, path in zip(saved.frames, saved.paths()):
+            if not path.is_file() or sha256_of(path) != frame.sha256:
+                raise InputError(f"--resume: {path} is missing or changed since it was captured (sha256); "
+                                 "restore it, or start a new capture in another --out")
+            self._taken[nearest_shutter(frame.exposure_s).index] = frame
+        saved.status, saved.error = "incomplete", IN_PROGRESS
+        saved.notes.append(f"resumed {dt.datetime.now().isoformat(timespec='seconds')} with "
+                           f"{len(saved.frames)} frames on disk")
+        return saved
 
     def _finish(self, bracket: Bracket) -> None:
         bracket.frames.sort(key=lambda frame: frame.exposure_s)
         bracket.notes.extend(getattr(getattr(self.camera, "session", None), "log", []) or [])
-        bracket.write(self.folder)
+        self._save(bracket)
+
+    def _save(self, bracket: Bracket) -> None:
+        bracket.write(self.folder, overwrite=True)  # our own manifest, claimed at the start
+
+    def _list_frame_being_written(self, bracket: Bracket) -> None:
+        """A frame the camera wrote just before the capture stopped, before it could be listed, is listed
+        with the settings it was shot at (and a note), so that no frame on disk is missing from the manifest."""
+        if self._shooting is None:
+            return
+        stem, settings = self._shooting
+        listed = {frame.file for frame in bracket.frames}
+        for path in sorted(self.folder.glob(f"{stem}.*")):
+            if path.name in listed or path.name.startswith(".") or TEMPORARY_SUFFIX in path.name:
+                continue
+            bracket.frames.append(self._record(path, settings, dt.datetime.fromtimestamp(path.stat().st_mtime)))
+            bracket.notes.append(f"{path.name} was written as the capture stopped; listed with the settings "
+                                 "it was shot at")
+
+    def _record(self, path: Path, settings: ExposureSettings, timestamp: dt.datetime) -> BracketFrame:
+        return BracketFrame(
+            file=path.name, sha256=sha256_of(path), exposure_s=settings.exposure_s,
+            exposure_label=settings.exposure_label, iso=settings.iso, f_number=settings.f_number,
+            timestamp=timestamp.isoformat(), true_exposure_s=self.true_exposure_s() if self.true_exposure_s else None)
 
     def _fixed(self, bracket: Bracket, notches: list[ShutterNotch], dark: bool) -> None:
         progress = Progress(len(notches), "darks" if dark else "bracket") if self.show_progress else None
@@ -135,13 +209,35 @@ class BracketCapture:
 
     def _shoot_one(self, bracket: Bracket, notch: ShutterNotch, dark: bool,
                    plan: BracketPlan | None = None) -> FrameStatistics | None:
+        taken = self._taken.get(notch.index)
+        if taken is not None:  # resumed: this exposure is already on disk
+            if plan is None:
+                return None
+            bayer_dn = read_raw(self.folder / taken.file).bayer_dn
+            return frame_statistics(bayer_dn, self.camera_spec, taken.iso, plan)
         settings = self.camera.set_exposure(exposure_s=notch.true_s)
-        stem = f"{'dark' if dark else 'frame'}-{len(bracket.frames):02d}"
+        stem = self._free_stem("dark" if dark else "frame", bracket)
+        self._shooting = (stem, settings)
         frame: CapturedFrame = self.camera.capture(self.folder, stem, dark=dark)
-        bracket.frames.append(BracketFrame(
-            file=frame.path.name, sha256=sha256_of(frame.path), exposure_s=settings.exposure_s,
-            exposure_label=settings.exposure_label, iso=settings.iso, f_number=settings.f_number,
-            timestamp=frame.timestamp.isoformat(), true_exposure_s=self.true_exposure_s() if self.true_exposure_s else None))
+        bracket.frames.append(self._record(frame.path, settings, frame.timestamp))
+        self._shooting = None
+        self._save(bracket)
         if plan is None:
             return None
         return frame_statistics(frame.raw.bayer_dn, self.camera_spec, settings.iso, plan)
+
+    def _free_stem(self, prefix: str, bracket: Bracket) -> str:
+        """The next frame name: numbered in capture order, never one that a file on disk already has."""
+        index = len(bracket.frames)
+        while any(self.folder.glob(f"{prefix}-{index:02d}.*")):
+            index += 1
+        return f"{prefix}-{index:02d}"
+
+
+def _stop_reason(error: BaseException) -> str:
+    """Why a capture stopped, in one line for the manifest."""
+    if isinstance(error, Interrupted):
+        return f"interrupted ({error})"
+    if isinstance(error, KeyboardInterrupt):
+        return "interrupted (SIGINT)"
+    return failure_message(error) or f"{type(error).__name__}: {error}"

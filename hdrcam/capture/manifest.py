@@ -19,6 +19,7 @@ from hdrcam.io.atomic import write_text_atomic
 
 FORMAT = "hdrcam-bracket/1"
 MANIFEST_NAME = "bracket.json"
+IN_PROGRESS = "the capture is running (or was killed: resume it with capture bracket --resume)"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +40,7 @@ class Bracket:
     camera: dict
     profile: str | None
     frames: list[BracketFrame]
-    status: str = "complete"  # complete | failed
+    status: str = "complete"  # complete | incomplete (stopped or running: ``error`` says why)
     error: str | None = None
     notes: list[str] = dataclasses.field(default_factory=list)
     options: dict = dataclasses.field(default_factory=dict)

@@ -12,6 +12,8 @@ import dataclasses
 import math
 from fractions import Fraction
 
+from hdrcam.errors import InputError
+
 _SLOW_LABELS = ("30", "25", "20", "15", "13", "10", "8", "6", "5", "4", "3.2", "2.5", "2", "1.6", "1.3", "1",
                 "0.8", "0.6", "0.5", "0.4")
 _FAST_DENOMINATORS = (3, 4, 5, 6, 8, 10, 13, 15, 20, 25, 30, 40, 50, 60, 80, 100, 125, 160, 200, 250, 320, 400,
@@ -73,11 +75,11 @@ def bracket_notches(shortest_s: float, stops: int, ev_step: float) -> list[Shutt
     """``stops`` notches from the one nearest ``shortest_s`` towards longer exposures, ``ev_step`` EV apart."""
     step = round(ev_step * NOTCHES_PER_EV)
     if step < 1 or abs(step - ev_step * NOTCHES_PER_EV) > 1e-6:
-        raise ValueError(f"ev_step must be a positive multiple of 1/3 EV, got {ev_step}")
+        raise InputError(f"ev_step must be a positive multiple of 1/3 EV, got {ev_step}")
     first = nearest_shutter(shortest_s).index
     indices = [first - k * step for k in range(stops)]
     if indices[-1] < 0:
-        raise ValueError(f"{stops} exposures {ev_step} EV apart from {shortest_s:g} s need longer than 30 s; "
+        raise InputError(f"{stops} exposures {ev_step} EV apart from {shortest_s:g} s need longer than 30 s; "
                          "choose a longer shortest exposure or fewer stops")
     return [SHUTTER_NOTCHES[i] for i in indices]
 

@@ -14,9 +14,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hdrcam.data.hdr_folder import warn_negative_radiance
 from hdrcam.data.night_scene import night_scene
 from hdrcam.errors import InputError
 from hdrcam.io.exr import read_exr
+from hdrcam.limits import check_image_size
+
+# scene, irradiance, electrons, noise and the Bayer frame (measured: 36 bytes a pixel for 2048 x 1536, x 2)
+SIMULATED_CAMERA_BYTES_PER_PIXEL = 72
 
 SCENE_KINDS = ("point", "pinholes", "night", "flat")
 DEFAULT_PINHOLE_SPACING_PX = 72  # > the simulated profile's 63 px PSF plus an annulus for the background; denser
@@ -55,6 +60,8 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
     ``pinholes`` is a pinhole-array calibration target: a grid of equal point sources SPACING pixels apart,
     each imaged at its own sub-pixel and CFA phase, so together they sample the PSF densely.
     """
+    check_image_size("the simulated frame", height_px, width_px, SIMULATED_CAMERA_BYTES_PER_PIXEL,
+                     "use a smaller --size")
     kind, _, argument = spec.partition(":")
     if kind == "point":
         power = _number(spec, argument, DEFAULT_POINT_POWER)
@@ -85,6 +92,7 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
     radiance = read_exr(path).rgb()
     if not np.isfinite(radiance).all():
         raise InputError(f"{path}: the scene has NaN or infinite pixels")
+    warn_negative_radiance(path, radiance)
     return Scene(height_px, width_px, _cover(radiance, height_px, width_px), (), f"{path.name}")
 
 

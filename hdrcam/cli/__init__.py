@@ -1,21 +1,27 @@
-"""``hdrcam <command>``: the command line. Bad arguments exit 2 with one line; failures exit 1 with one line."""
+"""``hdrcam <command>``: the command line. Exit statuses follow :mod:`hdrcam.errors`: bad arguments exit 2 with
+one line; failures a user can act on exit 1 with one line; a bug exits 3."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
+import threading
+import traceback
 import warnings
 
 from hdrcam import __version__
-from hdrcam.errors import HdrcamError
+from hdrcam.errors import (EXIT_BUG, EXIT_FAILURE, EXIT_USAGE, HdrcamError, Interrupted, StepFailed,
+                           failure_message, one_line)
 
 
 class OneLineParser(argparse.ArgumentParser):
     """An ArgumentParser whose usage errors are a single line (exit status 2)."""
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, one_line(f"{self.prog}: error: {message} (see '{self.prog} --help')") + "\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,23 +41,103 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`."""
     parser = build_parser()
     arguments = parser.parse_args(argv)
-    warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {message}\n"
+    warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {one_line(str(message))}\n"
+    name = f"hdrcam {arguments.command}"
     try:
-        return int(arguments.run(arguments) or 0)
-    except HdrcamError as error:
-        print(f"hdrcam {arguments.command}: error: {error}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"hdrcam {arguments.command}: interrupted", file=sys.stderr)
-        return 130
+        with termination_signals_raised(), _stdout_guarded():
+            status = int(arguments.run(arguments) or 0)
+            sys.stdout.flush()  # a full or closed stdout is a failure of this command, not of the interpreter
+        return status
+    except StepFailed as failure:  # the step has printed its own line
+        return failure.status
+    except KeyboardInterrupt as interrupt:
+        number = getattr(interrupt, "signal_number", signal.SIGINT)
+        _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
+        return 128 + number
     except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
         if os.environ.get("HDRCAM_DEBUG"):
-            raise
-        print(f"hdrcam {arguments.command}: internal error: {type(error).__name__}: {error} "
-              "(set HDRCAM_DEBUG=1 for a traceback)", file=sys.stderr)
-        return 3
+            traceback.print_exc()
+        message = failure_message(error)
+        if message is not None:
+            _report(f"{name}: error: {message}")
+            return EXIT_FAILURE
+        _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
+                "traceback that HDRCAM_DEBUG=1 shows)")
+        return EXIT_BUG
+
+
+def _report(line: str) -> None:
+    print(one_line(line), file=sys.stderr, flush=True)
+
+
+class StandardOutputError(HdrcamError):
+    """Standard output cannot be written (a full device, a closed pipe)."""
+
+
+class _GuardedOutput:
+    """Wraps sys.stdout while a command runs: a failed write becomes a one-line StandardOutputError, and the
+    descriptor then points at /dev/null so that the interpreter's own flush at exit cannot fail again."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._guarded(self._stream.write, text)
+        except UnicodeEncodeError:  # a file name that is not valid in the terminal's encoding: escape it
+            encoding = getattr(self._stream, "encoding", None) or "utf-8"
+            return self._guarded(self._stream.write, text.encode(encoding, "backslashreplace").decode(encoding))
+
+    def flush(self) -> None:
+        return self._guarded(self._stream.flush)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+    def _guarded(self, operation, *arguments):
+        try:
+            return operation(*arguments)
+        except OSError as error:
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, self._stream.fileno())
+                os.close(devnull)
+            raise StandardOutputError(f"cannot write to standard output ({error.strerror or error}); "
+                                      "redirect it to a file or device with room") from None
+
+
+@contextlib.contextmanager
+def _stdout_guarded():
+    stream = sys.stdout
+    sys.stdout = _GuardedOutput(stream)
+    try:
+        yield
+    finally:
+        sys.stdout = stream
+
+
+@contextlib.contextmanager
+def termination_signals_raised():
+    """SIGINT, SIGTERM and SIGHUP raise :class:`hdrcam.errors.Interrupted` (a KeyboardInterrupt) while a command
+    runs, so every ``finally`` and cleanup handler runs before the process ends; the previous handlers return
+    afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def raise_interrupted(number, frame):
+        raise Interrupted(number)
+
+    previous = {number: signal.signal(number, raise_interrupted) for number in (signal.SIGINT, signal.SIGTERM,
+                                                                             signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 if __name__ == "__main__":  # pragma: no cover

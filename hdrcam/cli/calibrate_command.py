@@ -13,7 +13,7 @@ from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
 from hdrcam.cli.arguments import add_profile_option, positive_int
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import bracket_paths
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 from hdrcam.profiles import load_profile
 
 
@@ -48,8 +48,7 @@ def run(arguments: argparse.Namespace) -> int:
     if size % 2 == 0:
         raise InputError(f"--size {size}: the PSF size must be odd (a centre pixel)")
     inputs = bracket_paths(arguments.bracket)
-    for name in OUTPUT_NAMES:
-        check_writable(arguments.out / name, overwrite=arguments.overwrite, inputs=inputs)
+    check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     calibration = calibrate_psf(arguments.bracket, profile.camera, darks=arguments.darks, size_px=size,
                                 energy_fraction=arguments.energy_fraction)

@@ -8,12 +8,13 @@ from pathlib import Path
 
 from hdrcam.capture.backends import CAMERA_KINDS, open_camera
 from hdrcam.capture.bracket import BracketCapture, BracketPlan
-from hdrcam.capture.manifest import MANIFEST_NAME
+from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.capture.notches import nearest_shutter
 from hdrcam.capture.scene import load_scene
 from hdrcam.capture.simulated import simulation_psf
-from hdrcam.cli.arguments import add_profile_option, exposure_seconds, integers, positive_float, positive_int
-from hdrcam.errors import OutputExistsError
+from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
+                                  thirds_of_ev)
+from hdrcam.errors import InputError, OutputExistsError
 from hdrcam.profiles import load_profile
 
 
@@ -26,7 +27,8 @@ def register(commands) -> None:
     add_profile_option(parser)
     parser.add_argument("--out", type=Path, required=True, help="new folder for the frames and bracket.json")
     parser.add_argument("--stops", type=positive_int, default=None, help="number of exposures (--auto: at most)")
-    parser.add_argument("--ev-step", type=positive_float, default=None, help="EV between exposures (1/3 steps)")
+    parser.add_argument("--ev-step", type=thirds_of_ev, default=None,
+                        help="EV between exposures, a multiple of 1/3 (e.g. 1, 2/3, 3)")
     parser.add_argument("--shortest", type=exposure_seconds, default=1 / 4000, metavar="S",
                         help="shortest exposure, e.g. 1/4000 (--auto: the first one tried)")
     parser.add_argument("--iso", type=positive_float, default=100.0, help="ISO (default 100)")
@@ -35,6 +37,9 @@ def register(commands) -> None:
     parser.add_argument("--roi", type=integers(4), default=None, metavar="X,Y,W,H",
                         help="region of interest for --auto, in pixels (default: whole frame)")
     parser.add_argument("--darks", action="store_true", help="also dark frames at the same exposures (DIR/darks)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the incomplete capture in --out (same camera, profile and options): frames "
+                             "on disk are checked and kept, only the missing ones are shot")
     simulation = parser.add_argument_group("simulated cameras (sim, sim-usb)")
     simulation.add_argument("--scene", default="point",
                             help="point[:POWER] | pinholes[:POWER[:SPACING]] (PSF calibration target) | night | "
@@ -52,9 +57,18 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(arguments.profile)
     folder: Path = arguments.out
-    for manifest in (folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME):
-        if manifest.exists():
-            raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out")
+    lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME
+    saved = saved_darks = None
+    if arguments.resume:
+        saved = load_bracket(lights_manifest)
+        saved_darks = load_bracket(darks_manifest) if darks_manifest.exists() else None
+        if saved.status == "complete" and (not arguments.darks or getattr(saved_darks, "status", "") == "complete"):
+            raise InputError(f"{folder}: the capture is complete; nothing to resume")
+    else:
+        for manifest in (lights_manifest, darks_manifest):
+            if manifest.exists():
+                raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out "
+                                        "(or pass --resume to continue an incomplete one)")
     plan = BracketPlan(shortest_s=arguments.shortest, stops=arguments.stops or profile.calibration.stops,
                        ev_step=arguments.ev_step or profile.calibration.ev_step, iso=arguments.iso,
                        auto=arguments.auto, roi=arguments.roi, target_snr=profile.calibration.target_snr,
@@ -67,23 +81,29 @@ def run(arguments: argparse.Namespace) -> int:
     camera, simulated = open_camera(arguments.camera, profile, scene=scene, psf=psf, seed=arguments.seed,
                                     hot_pixel_fraction=arguments.hot_pixels, exposure_error=arguments.exposure_error)
     options = {"scene": scene.description if scene else None, "psf": arguments.psf if scene else None,
-               "seed": arguments.seed}
+               "seed": arguments.seed, "profile_sha256": sha256_of(profile.path)}
     truth = simulated.true_exposure_s if simulated else None
     started = time.perf_counter()
+    shot = 0
     with camera:
         print(f"camera: {camera.model} ({arguments.camera}); profile {profile.name}")
         capture = BracketCapture(camera, profile.camera, folder, backend=arguments.camera, profile=profile.name,
                                  options=options, true_exposure_s=truth)
-        bracket = capture.shoot(plan)
+        if saved is not None and saved.status == "complete":
+            bracket = saved
+        else:
+            bracket = capture.shoot(plan, resume=saved)
+            shot += len(bracket.frames) - (len(saved.frames) if saved else 0)
         _print_frames(bracket, folder)
         if arguments.darks:
             darks = BracketCapture(camera, profile.camera, folder / "darks", backend=arguments.camera,
                                    profile=profile.name, options=options, true_exposure_s=truth)
             notches = [nearest_shutter(frame.exposure_s) for frame in bracket.frames]
-            _print_frames(darks.shoot(plan, dark_notches=notches), folder / "darks")
+            dark_bracket = darks.shoot(plan, dark_notches=notches, resume=saved_darks)
+            shot += len(dark_bracket.frames) - (len(saved_darks.frames) if saved_darks else 0)
+            _print_frames(dark_bracket, folder / "darks")
     seconds = time.perf_counter() - started
-    frames = len(bracket.frames) * (2 if arguments.darks else 1)
-    print(f"{frames} frames in {seconds:.1f} s ({seconds / frames:.2f} s per frame) -> {folder / MANIFEST_NAME}")
+    print(f"{shot} frames in {seconds:.1f} s ({seconds / max(shot, 1):.2f} s per frame) -> {lights_manifest}")
     for note in bracket.notes:
         print(f"note: {note}")
     return 0

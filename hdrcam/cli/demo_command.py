@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int
-from hdrcam.errors import InputError, OutputExistsError
+from hdrcam.errors import OutputExistsError, StepFailed
 
 
 def register(commands) -> None:
@@ -40,7 +40,7 @@ def _step(label: str, argv: list[str], timings: dict) -> None:
     status = main(argv)
     timings[label] = round(time.perf_counter() - started, 1)
     if status:
-        raise InputError(f"demo step '{label}' failed (exit {status}); see the message above")
+        raise StepFailed(status)
 
 
 def run(arguments: argparse.Namespace) -> int:
@@ -54,6 +54,11 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import log_average_luminance, tonemap_rgb
     from hdrcam.train.checkpoint import load_model
 
+    from hdrcam.limits import check_image_size
+    from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL
+
+    height, width = arguments.size
+    check_image_size("--size", height, width, CAPTURE_BYTES_PER_PIXEL, "use a smaller --size")
     out = arguments.out
     if out.exists() and any(out.iterdir()):
         raise OutputExistsError(f"{out} is not empty; choose another --out (the demo never overwrites results)")
@@ -79,7 +84,6 @@ def run(arguments: argparse.Namespace) -> int:
                                                 "--out", str(out / "4-finetune")], timings)
         checkpoint = out / "4-finetune" / "model.pt"
     frame, truth = out / "5-night-frame.exr", out / "5-night-truth.exr"
-    height, width = arguments.size
     _step("capture night scene", ["simulate", "night", "--psf", str(design_psf), "--size", str(height), str(width),
                                   "--seed", seed, "--out", str(frame), "--truth", str(truth)], timings)
     _step("reconstruct", ["reconstruct", str(frame), "--checkpoint", str(checkpoint), "--psf",

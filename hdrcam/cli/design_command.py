@@ -17,16 +17,19 @@ from hdrcam.train.optical_capture import FIXED_PSFS, TRAINABLE_DOES
 
 
 def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> None:
-    parser.add_argument("--steps", type=positive_int, default=default_steps, help=f"(default {default_steps})")
+    """Options left out take the run's own values with --resume, and these defaults for a new run."""
+    parser.add_argument("--steps", type=positive_int, default=None, help=f"(default {default_steps})")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
-    parser.add_argument("--data", default="procedural",
-                        help="'procedural' (seeded night scenes) or a folder of .exr/.hdr files")
-    parser.add_argument("--batch", type=positive_int, default=4)
-    parser.add_argument("--crop", type=positive_int, default=128, metavar="PX", help="crop size (multiple of 16)")
+    parser.add_argument("--data", default=None,
+                        help="'procedural' (seeded night scenes, the default) or a folder of .exr/.hdr files")
+    parser.add_argument("--batch", type=positive_int, default=None, help="(default 4)")
+    parser.add_argument("--crop", type=positive_int, default=None, metavar="PX",
+                        help="crop size (multiple of 16, default 128)")
     parser.add_argument("--lr", type=positive_float, default=None, help="network learning rate")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--checkpoint-every", type=positive_int, default=100, metavar="K")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    parser.add_argument("--seed", type=int, default=None, help="(default 0)")
+    parser.add_argument("--checkpoint-every", type=positive_int, default=None, metavar="K", help="(default 100)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the run in --out from its checkpoint; options given must match the run's")
     parser.add_argument("--vgg-weights", type=Path, default=None,
                         help="torchvision VGG-19 state dict (preset paper; or set HDRCAM_VGG19_WEIGHTS)")
     parser.add_argument("--random-vgg", action="store_true",
@@ -34,13 +37,17 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
 
 
+_TRAINING_FIELDS = {"steps": "steps", "data": "data", "batch": "batch", "crop": "crop_px", "lr": "learning_rate",
+                    "seed": "seed", "checkpoint_every": "checkpoint_every"}
+
+
 def register(commands) -> None:
     design = commands.add_parser("design", help="end-to-end design of the DOE and the network",
                                  description="Jointly optimise a DOE height map and the reconstruction network "
                                              "through the simulated optics and sensor (paper Sec. 3-4), or train "
                                              "the network alone behind a fixed PSF (--psf).")
-    design.add_argument("--preset", choices=tuple(PRESETS), default="fast")
-    design.add_argument("--profile", default="simulated", help="capture profile (default simulated)")
+    design.add_argument("--preset", choices=tuple(PRESETS), default=None, help="(default fast)")
+    design.add_argument("--profile", default=None, help="capture profile (default simulated)")
     choice = design.add_mutually_exclusive_group()
     choice.add_argument("--doe", choices=TRAINABLE_DOES, default=None, help="trained height map (default rank1)")
     choice.add_argument("--psf", default=None, metavar="|".join(FIXED_PSFS) + "|FILE",
@@ -61,11 +68,18 @@ def register(commands) -> None:
     finetune.set_defaults(run=run_finetune)
 
 
-def _config(arguments: argparse.Namespace, **fields) -> TrainConfig:
-    config = TrainConfig(data=arguments.data, steps=arguments.steps, batch=arguments.batch, crop_px=arguments.crop,
-                         seed=arguments.seed, checkpoint_every=arguments.checkpoint_every, **fields)
-    if arguments.lr:
-        config.learning_rate = arguments.lr
+def _config(arguments: argparse.Namespace, new_run: dict, given: dict) -> TrainConfig:
+    """The run's configuration: ``new_run`` fields (a new run) or the saved ones (--resume), then the fields
+    ``given`` on the command line; train() refuses a resume whose given fields differ from the run's."""
+    given = dict(given, **{field: getattr(arguments, option) for option, field in _TRAINING_FIELDS.items()
+                           if getattr(arguments, option) is not None})
+    checkpoint = arguments.out / "checkpoint.pt"
+    if arguments.resume and checkpoint.is_file():
+        config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
+    else:
+        config = TrainConfig(**new_run)
+    for field, value in given.items():
+        setattr(config, field, value)
     return config
 
 
@@ -85,12 +99,16 @@ def _train(config: TrainConfig, arguments: argparse.Namespace) -> int:
 def run_design(arguments: argparse.Namespace) -> int:
     if arguments.psf and arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
         raise InputError(f"--psf {arguments.psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
-    doe = None if arguments.psf else (arguments.doe or "rank1")
     if arguments.init is not None and not arguments.init.is_file():
         raise InputError(f"--init {arguments.init} does not exist")
-    config = _config(arguments, preset=arguments.preset, profile=arguments.profile, doe=doe, psf=arguments.psf,
-                     init_checkpoint=str(arguments.init) if arguments.init else None)
-    return _train(config, arguments)
+    given = {field: getattr(arguments, field) for field in ("preset", "profile") if getattr(arguments, field)}
+    if arguments.psf:
+        given.update(psf=arguments.psf, doe=None)
+    elif arguments.doe:
+        given.update(doe=arguments.doe, psf=None)
+    if arguments.init is not None:
+        given.update(init_checkpoint=str(arguments.init))
+    return _train(_config(arguments, {"steps": 1000}, given), arguments)
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:
@@ -100,8 +118,8 @@ def run_finetune(arguments: argparse.Namespace) -> int:
     state = read_checkpoint(checkpoint)
     if not arguments.psf.is_file():
         raise InputError(f"--psf {arguments.psf} does not exist")
-    config = _config(arguments, preset=state["preset"], profile=state["profile"], doe=None, psf=str(arguments.psf),
-                     init_checkpoint=str(checkpoint))
-    if not arguments.lr:
-        config.learning_rate = 2e-4  # a gentler start than from scratch: the network already works
-    return _train(config, arguments)
+    new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
+               "init_checkpoint": str(checkpoint),
+               "learning_rate": 2e-4}  # a gentler start than from scratch: the network already works
+    given = {"psf": str(arguments.psf), **({"init_checkpoint": str(checkpoint)} if arguments.checkpoint else {})}
+    return _train(_config(arguments, new_run, given), arguments)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import compute_device
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 
 SHIPPED_WINDSHIELD = Path(__file__).resolve().parent.parent / "checkpoints" / "windshield-fast.pt"
 
@@ -51,9 +51,8 @@ def run(arguments: argparse.Namespace) -> int:
     if network and read_checkpoint(arguments.checkpoint)["config"].get("psf") != "windshield":
         raise InputError(f"{arguments.checkpoint} was not trained on windshield streaks (design --psf windshield)")
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
-    for pair in outputs:
-        for path in pair:
-            check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
+    check_outputs([path for pair in outputs for path in pair], overwrite=arguments.overwrite,
+                  inputs=arguments.inputs)
     model = load_model(arguments.checkpoint) if network else None
     frames = [read_ldr_frame(source) for source in arguments.inputs]
     for source, frame, (exr_path, png_path) in zip(arguments.inputs, frames, outputs):

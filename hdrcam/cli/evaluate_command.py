@@ -8,7 +8,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 
 
 def register(commands) -> None:
@@ -47,13 +47,16 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
     from hdrcam.evaluate.test_run import evaluate_models
     from hdrcam.optics.psf_file import load_psf
+    from hdrcam.limits import check_image_size
     from hdrcam.progress import Progress
+    from hdrcam.recon.tiling import FRAME_BYTES_PER_PIXEL, WINDOW_BYTES_PER_PIXEL
     from hdrcam.train.checkpoint import load_model
 
-    if arguments.size % 16:
-        raise InputError(f"--size must be a multiple of 16, got {arguments.size}")
-    for name in OUTPUT_NAMES:
-        check_writable(arguments.out / name, overwrite=arguments.overwrite)
+    if arguments.size % 16 or arguments.size < 32:
+        raise InputError(f"--size must be a multiple of 16 and at least 32, got {arguments.size}")
+    check_image_size("--size", arguments.size, arguments.size, WINDOW_BYTES_PER_PIXEL + FRAME_BYTES_PER_PIXEL,
+                     "use a smaller --size")
+    check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite)
     models = {label: load_model(path, vgg_weights=arguments.vgg_weights)
               for label, path in _labelled(arguments.checkpoint).items()}
     psf = load_psf(arguments.psf) if arguments.psf else None

@@ -12,7 +12,7 @@ import torch
 from hdrcam import __version__
 from hdrcam.cli.arguments import add_profile_option, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable, write_text_atomic
+from hdrcam.io.atomic import check_outputs, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
@@ -21,6 +21,9 @@ from hdrcam.optics.heightmap import FixedHeightMap, load_heightmap, save_heightm
 from hdrcam.optics.materials import refractive_index
 from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.profiles import load_profile
+
+
+MAX_LEVELS = 2 ** 16  # 16 binary masks; a level histogram of 2^40 bins alone would need 8 TB
 
 
 def register(commands) -> None:
@@ -40,16 +43,16 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(arguments.profile)
     levels = arguments.levels or profile.doe.levels
-    if levels < 2 or levels & (levels - 1):
-        raise InputError(f"--levels must be a power of two >= 2, got {levels}")
+    if levels < 2 or levels & (levels - 1) or levels > MAX_LEVELS:
+        raise InputError(f"--levels must be a power of two from 2 to {MAX_LEVELS} ({MAX_LEVELS.bit_length() - 1} "
+                         f"masks), got {levels}")
     masks_count = levels.bit_length() - 1
     outputs = {"heightmap": arguments.out / "heightmap_quantised.exr",
                "report_json": arguments.out / "report.json", "report_md": arguments.out / "report.md",
                **{f"mask{b}": arguments.out / f"mask_{b + 1}_of_{masks_count}.png" for b in range(masks_count)}}
     if arguments.simulate:
         outputs["psf"] = arguments.out / "psf_quantised.exr"
-    for path in outputs.values():
-        check_writable(path, overwrite=arguments.overwrite, inputs=[arguments.heightmap])
+    check_outputs(outputs.values(), overwrite=arguments.overwrite, inputs=[arguments.heightmap])
 
     source = load_heightmap(arguments.heightmap, profile.doe.aperture_m)
     heights = source.heights_m.numpy().astype(np.float64)

@@ -11,7 +11,7 @@ import numpy as np
 from hdrcam.cli.arguments import add_profile_option
 from hdrcam.hdr.bracket_input import bracket_paths
 from hdrcam.hdr.fuse import fuse
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.preview import tonemap_rgb
@@ -36,8 +36,8 @@ def run(arguments: argparse.Namespace) -> int:
     out: Path = arguments.out
     preview = out.with_suffix(".png")
     inputs = bracket_paths(arguments.bracket)
-    for path in (out, preview):
-        check_writable(path, overwrite=arguments.overwrite, inputs=inputs)
+    check_outputs((out, preview), overwrite=arguments.overwrite,
+                  inputs=inputs + ([arguments.darks] if arguments.darks else []))
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
                  with_variance=arguments.variance)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder
 from hdrcam.cli.arguments import positive_float
-from hdrcam.io.atomic import check_writable
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_outputs
 
 
 def register(commands) -> None:
@@ -23,18 +24,20 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     out = arguments.out or arguments.folder
     result = ingest_folder(arguments.folder, arguments.max_gap)
+    if not result.brackets:
+        reasons = "; ".join(result.report[:3])
+        if len(result.report) > 3:
+            reasons += f"; and {len(result.report) - 3} more"
+        raise InputError(f"{arguments.folder}: no brackets found ({reasons or 'no RAW files in it'}); "
+                         "give a folder of bracketed RAW frames")
     names = [out / f"bracket-{index:02d}.json" for index in range(1, len(result.brackets) + 1)]
-    for path in names:
-        check_writable(path, overwrite=arguments.overwrite)
-    for path, frames in zip(names, result.brackets):
-        manifest = bracket_manifest(frames, out, {"ingested_from": str(arguments.folder)})
+    check_outputs(names, overwrite=arguments.overwrite)
+    manifests = [bracket_manifest(frames, out, {"ingested_from": str(arguments.folder)}) for frames in result.brackets]
+    for path, frames, manifest in zip(names, result.brackets, manifests):
         manifest.write(out, path.name, overwrite=arguments.overwrite)
         exposures = ", ".join(f"{frame.exposure_s:g}" for frame in manifest.frames)
         print(f"{path}: {len(frames)} frames, ISO {frames[0].iso or '?'}, f/{frames[0].f_number or '?'}, "
               f"exposures {exposures} s")
     for line in result.report:
         print(line)
-    if not result.brackets:
-        print(f"no brackets found in {arguments.folder}")
-        return 1
     return 0

@@ -14,7 +14,7 @@ import torch
 from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
                                   positive_float, positive_int)
-from hdrcam.io.atomic import check_writable, write_text_atomic
+from hdrcam.io.atomic import check_outputs, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.heightmap import heightmap_for_doe, save_heightmap
@@ -54,8 +54,7 @@ def run(arguments: argparse.Namespace) -> int:
     doe_choice = arguments.doe or profile.doe.kind
     inputs = [Path(doe_choice)] if doe_choice not in ("rank1", "freeform", "none") else []
     outputs = [arguments.out / name for name in OUTPUT_NAMES]
-    for path in outputs:
-        check_writable(path, overwrite=arguments.overwrite, inputs=inputs)
+    check_outputs(outputs, overwrite=arguments.overwrite, inputs=inputs)
     dtype, device = compute_dtype(arguments.dtype), compute_device(arguments.device)
 
     heightmap = heightmap_for_doe(profile.doe, doe_choice, seed=arguments.seed, dtype=dtype)

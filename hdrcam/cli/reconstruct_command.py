@@ -15,7 +15,7 @@ import torch
 
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_writable, same_file_key
 from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 
@@ -69,12 +69,13 @@ def run(arguments: argparse.Namespace) -> int:
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     if dtype != torch.float32 and device.type != "cuda":
         raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
-    planned: dict[Path, Path] = {}
+    planned: dict[str, Path] = {}
     for source in arguments.inputs:
         for path in output_paths(arguments.out, source):
-            if path in planned:
-                raise InputError(f"{source} and {planned[path]} would both write {path}; rename one of them")
-            planned[path] = source
+            if same_file_key(path) in planned:
+                raise InputError(f"{source} and {planned[same_file_key(path)]} would both write {path}; "
+                                 "rename one of them")
+            planned[same_file_key(path)] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
     if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
         network = OnnxNetwork(arguments.checkpoint)

@@ -16,7 +16,7 @@ import numpy as np
 
 from hdrcam.cli.arguments import positive_float, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable
+from hdrcam.io.atomic import check_outputs
 
 
 def register(commands) -> None:
@@ -42,14 +42,14 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.exr import write_exr
     from hdrcam.profiles import load_profile
     from hdrcam.train.checkpoint import load_model
-    from hdrcam.train.optical_capture import FIXED_PSFS, capture_scene, fixed_psf
+    from hdrcam.limits import check_image_size
+    from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL, FIXED_PSFS, capture_scene, fixed_psf
 
     if not 0.0 < arguments.clipped_fraction < 1.0:
         raise InputError("--clipped-fraction must lie between 0 and 1")
     outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
     scene_inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
-    for path in outputs:
-        check_writable(path, overwrite=arguments.overwrite, inputs=scene_inputs)
+    check_outputs(outputs, overwrite=arguments.overwrite, inputs=scene_inputs)
     model = load_model(arguments.checkpoint) if arguments.checkpoint or not arguments.psf else None
     profile = load_profile(model.profile if model else "simulated")
     if arguments.psf:
@@ -61,10 +61,14 @@ def run(arguments: argparse.Namespace) -> int:
     margin = psf.shape[-1] // 2
     if arguments.scene == "night":
         height, width = arguments.size
+        check_image_size("--size", height + 2 * margin, width + 2 * margin, CAPTURE_BYTES_PER_PIXEL,
+                         "use a smaller --size")
         scene = night_scene(height + 2 * margin, width + 2 * margin, seed=arguments.seed, sources=40)
     else:
-        scene = np.pad(read_hdr_image(Path(arguments.scene)), ((margin, margin), (margin, margin), (0, 0)),
-                       mode="reflect")
+        scene = read_hdr_image(Path(arguments.scene), warn_negative=True)
+        check_image_size(arguments.scene, scene.shape[0] + 2 * margin, scene.shape[1] + 2 * margin,
+                         CAPTURE_BYTES_PER_PIXEL, "use a smaller scene")
+        scene = np.pad(scene, ((margin, margin), (margin, margin), (0, 0)), mode="reflect")
     inner = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
     scene = scale_to_clipped_fraction(scene, arguments.clipped_fraction, scale_region=inner)
     frame = capture_scene(scene, psf, profile, arguments.seed)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import cv2
@@ -13,7 +14,7 @@ from hdrcam.io.exr import read_exr
 HDR_SUFFIXES = (".exr", ".hdr")
 
 
-def read_hdr_image(path: Path) -> np.ndarray:
+def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
     """H x W x 3 float32 linear RGB from an EXR or Radiance file; NaN/Inf and negatives are refused/zeroed.
     A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read
     as grey, R = G = B = Y."""
@@ -29,7 +30,22 @@ def read_hdr_image(path: Path) -> np.ndarray:
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
     if not np.isfinite(image).all():
         raise InputError(f"{path}: image has NaN or Inf pixels")
-    return np.clip(image, 0.0, None)  # small negatives from resampling filters are not light
+    if warn_negative:
+        warn_negative_radiance(path, image)
+    return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light
+
+
+NEGATIVE_TOLERANCE = 0.01  # of the image's peak: resampling filters ring a little below zero
+
+
+def warn_negative_radiance(path: Path, image: np.ndarray) -> None:
+    """Warn when a scene has pixels further below zero than resampling ringing explains: they are taken as 0
+    (out-of-gamut colours of a wide-gamut photograph do this; a sign error in the file would too)."""
+    lowest, peak = float(image.min(initial=0.0)), float(image.max(initial=0.0))
+    if lowest < -NEGATIVE_TOLERANCE * max(peak, np.finfo(np.float32).tiny):
+        share = float(np.mean(image.min(axis=-1) < 0))
+        warnings.warn(f"{path}: {100 * share:.2g} % of the pixels are negative (down to {lowest:.4g}, peak "
+                      f"{peak:.4g}); they are taken as 0 - check the file if it should hold none")
 
 
 def hdr_files(folder: Path) -> list[Path]:

@@ -13,26 +13,40 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.capture.ingest import raw_files
-from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket
+from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
 from hdrcam.io.raw import NotRawError, RawFrame, read_raw
 
 
-def bracket_paths(sources: list[Path]) -> list[Path]:
-    """RAW paths of a bracket given as a manifest, a folder or files."""
+def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
+    """RAW paths of a bracket given as a manifest, a folder or files.
+
+    A manifest must be complete and of ``kind`` ("light" or "dark"), and every frame must still have the
+    sha256 it was captured with: a frame changed since, or darks given where lights belong, are refused.
+    """
     if len(sources) == 1 and (sources[0].suffix == ".json" or (sources[0] / MANIFEST_NAME).is_file()):
         bracket = load_bracket(sources[0])
         if bracket.status != "complete":
-            raise InputError(f"{sources[0]}: the capture {bracket.status}: {bracket.error}")
+            raise InputError(f"{sources[0]}: the capture is {bracket.status} ({bracket.error}); finish it with "
+                             "capture bracket --resume, or pass its frames as files")
+        if bracket.kind != kind:
+            raise InputError(f"{sources[0]}: a bracket of {bracket.kind} frames where {kind} frames are expected"
+                             + ("; give dark frames with --darks" if bracket.kind == "dark" else ""))
+        for frame, path in zip(bracket.frames, bracket.paths()):
+            if not path.is_file():
+                raise InputError(f"{path}: listed in {sources[0]} but missing; restore it")
+            if sha256_of(path) != frame.sha256:
+                raise InputError(f"{path}: changed since it was captured (its sha256 differs from the manifest's); "
+                                 "restore the original frame")
         return bracket.paths()
     if len(sources) == 1 and sources[0].is_dir():
         return raw_files(sources[0])
     return list(sources)
 
 
-def read_bracket(sources: list[Path]) -> list[RawFrame]:
+def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     """Read and check every frame; InputError naming the offending file otherwise."""
-    paths = bracket_paths(sources)
+    paths = bracket_paths(sources, kind)
     from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
     frames = []
     for path in paths:
@@ -48,7 +62,8 @@ def read_bracket(sources: list[Path]) -> list[RawFrame]:
     reference = frames[0].metadata
     for frame in frames[1:]:
         meta = frame.metadata
-        checks = (("frame size", (meta.width_px, meta.height_px), (reference.width_px, reference.height_px)),
+        checks = (("camera model", meta.camera_model, reference.camera_model),
+                  ("frame size", (meta.width_px, meta.height_px), (reference.width_px, reference.height_px)),
                   ("CFA pattern", meta.cfa_pattern, reference.cfa_pattern),
                   ("ISO", meta.iso, reference.iso),
                   ("aperture", _rounded(meta.f_number), _rounded(reference.f_number)))

@@ -48,7 +48,7 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
     """A dark frame per light frame, matched by exposure time; InputError when one is missing."""
     if darks_source is None:
         return None
-    darks = read_bracket([darks_source])
+    darks = read_bracket([darks_source], kind="dark")
     matched = []
     for frame in frames:
         exposure = frame.metadata.exposure_s

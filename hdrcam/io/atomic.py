@@ -1,12 +1,21 @@
-"""Atomic file output: write to a temporary name in the target folder, then rename.
+"""Atomic, no-clobber file output.
 
-A crash or an error never leaves a partial file under the final name, and an existing file is never
-replaced unless the caller asks for it.
+Every output is written to a temporary name in its destination folder (``.NAME.XXXX.part``) and then
+published under its final name without replacing anything: a hard link (which fails if the name exists),
+or on file systems without hard links an exclusive create (O_EXCL) of the name followed by a rename onto
+it. So a file that appears between a command's checks and its write (another run, another program) is
+never touched; only ``overwrite=True`` replaces, and then by an atomic rename of a complete file, so the
+old bytes stay whole until the new ones are complete (and an input hard-linked elsewhere keeps its bytes).
+
+A failure of any kind - an exception, a full disk, SIGINT or SIGTERM (which ``hdrcam.cli.main`` turns into
+an exception) - removes the temporary file, and never leaves a partial file under the final name.
+Operating-system errors raised while writing name the final path, not the temporary one.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -14,36 +23,136 @@ from pathlib import Path
 
 from hdrcam.errors import OutputExistsError
 
+_NO_HARD_LINKS = {errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK, errno.ENOSYS}
+TEMPORARY_SUFFIX = ".part"
+
+
+def same_file_key(path: Path) -> str:
+    """A key equal for two spellings of one destination (symbolic links and '..' resolved; never raises)."""
+    return os.path.normcase(os.path.realpath(os.path.abspath(path)))
+
 
 def check_writable(path: Path, *, overwrite: bool = False, inputs: Iterable[Path] = ()) -> Path:
-    """Refuse an output that is one of ``inputs``, or that exists while ``overwrite`` is false."""
+    """Refuse an output that is one of ``inputs``, a folder, or that exists while ``overwrite`` is false."""
     path = Path(path)
-    resolved = path.resolve()
+    key = same_file_key(path)
     for source in inputs:
-        if Path(source).resolve() == resolved:
+        if same_file_key(Path(source)) == key:
             raise OutputExistsError(f"{path} is also an input; choose another output path")
-    if path.exists() and not overwrite:
+    if os.path.isdir(path):
+        raise OutputExistsError(f"{path} is a folder where an output file is expected; give a file path")
+    if os.path.lexists(path) and not overwrite:
         raise OutputExistsError(f"{path} already exists; choose another output or pass --overwrite")
+    check_destination_folder(path.parent)
     return path
+
+
+def check_destination_folder(folder: Path) -> None:
+    """Raise the OSError that writing into ``folder`` would meet, before any work: its nearest existing
+    ancestor must be a folder this process may write to (the rest is created)."""
+    ancestor = Path(os.path.abspath(folder))
+    while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not os.path.isdir(ancestor):
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(ancestor))
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        code = errno.EROFS if _read_only_file_system(ancestor) else errno.EACCES
+        raise OSError(code, os.strerror(code), str(ancestor))
+
+
+def _read_only_file_system(folder: Path) -> bool:
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
+
+
+def check_outputs(paths: Iterable[Path], *, overwrite: bool = False, inputs: Iterable[Path] = ()) -> list[Path]:
+    """Check all of one command's outputs before anything is written: no two of them the same file (e.g.
+    sibling outputs derived from one stem), none an input, none existing unless ``overwrite``."""
+    inputs, seen, checked = list(inputs), {}, []
+    for path in map(Path, paths):
+        key = same_file_key(path)
+        if key in seen:
+            raise OutputExistsError(f"{seen[key]} and {path} would be the same output file; rename an input "
+                                    "or choose another output")
+        seen[key] = path
+        checked.append(check_writable(path, overwrite=overwrite, inputs=inputs))
+    return checked
 
 
 @contextlib.contextmanager
 def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` (same suffix); rename it to ``path`` on success.
+    """Yield a temporary path beside ``path`` (same suffix); publish it as ``path`` when the body succeeds.
 
-    The temporary file is removed if the body raises. Parent folders are created.
+    Without ``overwrite`` the publication fails with OutputExistsError if ``path`` exists by then. The
+    temporary file is removed on every failure. Parent folders are created.
     """
     path = check_writable(Path(path), overwrite=overwrite)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".part{path.suffix}", dir=path.parent)
-    os.close(handle)
-    temporary_path = Path(temporary)
+    temporary_path = None
     try:
+        _make_folder(path.parent)
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.stem[:80]}.",
+                                             suffix=f"{TEMPORARY_SUFFIX}{path.suffix[:20]}", dir=path.parent)
+        os.close(handle)
+        temporary_path = Path(temporary)
         yield temporary_path
         os.chmod(temporary_path, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
-        os.replace(temporary_path, path)
+        _flush_to_disk(temporary_path)
+        _publish(temporary_path, path, overwrite)
+    except OSError as error:
+        _name_the_output(error, path, temporary_path)
+        raise
     finally:
-        temporary_path.unlink(missing_ok=True)
+        if temporary_path is not None:
+            with contextlib.suppress(OSError):
+                temporary_path.unlink(missing_ok=True)
+
+
+def _make_folder(folder: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a file (or a dangling link) where the folder belongs
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(folder)) from None
+
+
+def _publish(temporary: Path, path: Path, overwrite: bool) -> None:
+    if overwrite:
+        os.replace(temporary, path)
+        return
+    try:
+        os.link(temporary, path)
+    except FileExistsError:
+        raise _appeared(path) from None
+    except OSError as error:
+        if error.errno not in _NO_HARD_LINKS:
+            raise
+        try:  # claim the name exclusively, then move the complete file onto our own empty claim
+            os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        except FileExistsError:
+            raise _appeared(path) from None
+        os.replace(temporary, path)
+
+
+def _appeared(path: Path) -> OutputExistsError:
+    return OutputExistsError(f"{path} appeared while it was being written (another run?); it was left as it is; "
+                             "choose another output or pass --overwrite")
+
+
+def _flush_to_disk(path: Path) -> None:
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
+def _name_the_output(error: OSError, path: Path, temporary: Path | None) -> None:
+    """Make an OSError raised while writing name the output the user asked for."""
+    if error.filename is None or (temporary is not None and str(error.filename) == str(temporary)):
+        error.filename = str(path)
+        if error.filename2 is not None and str(error.filename2) == str(path):
+            error.filename2 = None
 
 
 def _umask() -> int:

@@ -11,6 +11,7 @@ range (65504) instead of silently storing Inf.
 from __future__ import annotations
 
 import dataclasses
+import io
 import warnings
 from pathlib import Path
 from typing import Any
@@ -19,9 +20,11 @@ import numpy as np
 import OpenEXR
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path
+from hdrcam.io.atomic import write_bytes_atomic
+from hdrcam.limits import check_image_size
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
+DECODED_BYTES_PER_SAMPLE = 12  # the decoded float32 plane, its full-resolution copy and one working copy
 _REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 # Header keys that OpenEXR manages itself; everything else is a user attribute.
 _STRUCTURAL_KEYS = {
@@ -60,8 +63,11 @@ def read_exr(path: Path) -> ExrImage:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
+    data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as exr_file:
+        with OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
+            _check_decoded_size(path, header_file.header())
+        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
             header = dict(exr_file.header())
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
                             for name, channel in exr_file.channels().items()}
@@ -81,6 +87,15 @@ def read_exr(path: Path) -> ExrImage:
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
     return ExrImage(channels=channels, attributes=attributes)
+
+
+def _check_decoded_size(path: Path, header: dict) -> None:
+    """Refuse, from the header alone, an image whose pixels would not fit in memory."""
+    window_min, window_max = header["dataWindow"]
+    height, width = int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1
+    channels = max(len(header.get("channels", ())), 1)
+    check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,
+                     "use a smaller image")
 
 
 def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, height: int, width: int,
@@ -145,7 +160,10 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
     channels = {name: np.ascontiguousarray(planes[..., index].astype(dtype)) for index, name in enumerate(names)}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
-        header[key] = value.item() if isinstance(value, np.generic) else value
-    with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        OpenEXR.File(header, channels).write(str(temporary))
-    return Path(path)
+        value = value.item() if isinstance(value, np.generic) else value
+        if isinstance(value, str):  # a file name that is not UTF-8 is stored with its odd bytes escaped
+            value = value.encode("utf-8", "backslashreplace").decode("utf-8")
+        header[key] = value
+    encoded = io.BytesIO()  # in memory, then written by Python: any file name works, a full disk names its cause
+    OpenEXR.File(header, channels).write(encoded)
+    return write_bytes_atomic(Path(path), encoded.getvalue(), overwrite=overwrite)

@@ -24,6 +24,7 @@ from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
+NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
 
 def read_ldr_frame(path: Path) -> np.ndarray:
@@ -45,6 +46,9 @@ def read_ldr_frame(path: Path) -> np.ndarray:
         rgb = raw_relative_rgb(path)
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
+    if float(rgb.min()) < -NEGATIVE_LDR_TOLERANCE:
+        raise InputError(f"{path}: values down to {float(rgb.min()):.4g} of white; a captured frame's noise stays "
+                         f"within {NEGATIVE_LDR_TOLERANCE:g} of black - check how the file was made")
     if float(rgb.max()) > LDR_TOLERANCE:
         raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
                          "capture (give the camera frame, not an HDR image)")

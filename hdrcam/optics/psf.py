@@ -38,9 +38,13 @@ from hdrcam.optics.heightmap import HeightMap, feature_indices, sample_heightmap
 from hdrcam.optics.materials import refractive_index
 from hdrcam.optics.propagation import angular_spectrum_transfer, fresnel_transfer_axis, propagate
 from hdrcam.optics.spectrum import band_wavelengths_m
+from hdrcam.errors import TooLargeError
+from hdrcam.limits import check_memory
 from hdrcam.profiles import Profile, image_distance_m
 
 _COMPLEX = {torch.float32: torch.complex64, torch.float64: torch.complex128}
+WAVE_BYTES_PER_SAMPLE = 96  # complex fields, phases and FFT buffers of one wavelength at float64, per grid sample
+MIN_WAVELENGTH_STEP_M = 0.1e-9
 
 
 @dataclasses.dataclass
@@ -75,13 +79,24 @@ class OpticalSetup:
                      upsample: int | None = None, allow_aliasing: bool = False) -> "OpticalSetup":
         simulation = profile.simulation
         samples = wavelengths_per_band or simulation.wavelengths_per_band
+        check_wavelength_samples(samples, simulation.band_edges_m)
         bands = tuple(tuple(float(w) for w in band_wavelengths_m(edges, samples)) for edges in simulation.band_edges_m)
         size = psf_size_px or simulation.psf_size_px
         grid = None if simulation.propagation == "fraunhofer" else SimulationGrid.for_optics(
             pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
             focal_length_m=profile.lens.focal_length_m, shortest_wavelength_m=min(min(b) for b in bands),
             psf_size_px=size, upsample=upsample, allow_aliasing=allow_aliasing)
-        return cls(grid=grid, pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m, focal_length_m=profile.lens.focal_length_m,
+        if grid is None:  # chirp-z: the sub-pixel crop of one wavelength dominates
+            subsampled = size * FRAUNHOFER_SUBPIXELS
+            check_memory(f"a {subsampled} x {subsampled} chirp-z PSF crop ({size} px, {FRAUNHOFER_SUBPIXELS} points "
+                         "per pixel)", subsampled ** 2 * WAVE_BYTES_PER_SAMPLE,
+                         "use a smaller --psf-size, or a machine with more memory")
+        else:
+            check_memory(f"a {grid.size} x {grid.size} wave simulation ({size} px PSF, {grid.upsample} samples per "
+                         "pixel)", grid.size ** 2 * WAVE_BYTES_PER_SAMPLE,
+                         "use a smaller --psf-size or --upsample, or a machine with more memory")
+        return cls(grid=grid, pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
+                   focal_length_m=profile.lens.focal_length_m,
                    sensor_distance_m=profile.sensor_distance_m,
                    source_distance_m=source_distance_m or profile.calibration.point_source_distance_m,
                    material=profile.doe.material, propagation=simulation.propagation, band_wavelengths_m=bands,
@@ -91,6 +106,17 @@ class OpticalSetup:
     def in_focus_distance_m(self) -> float:
         """Where the source itself would focus (thin lens); equals sensor_distance_m when in focus."""
         return image_distance_m(self.focal_length_m, self.source_distance_m)
+
+
+def check_wavelength_samples(samples: int, band_edges_m) -> None:
+    """Refuse more wavelengths per band than one per ``MIN_WAVELENGTH_STEP_M`` of the widest band: finer
+    sampling changes nothing a 3-channel sensor sees, and each sample is a full wave simulation."""
+    widest_m = max(longest - shortest for shortest, longest in band_edges_m)
+    most = max(1, round(widest_m / MIN_WAVELENGTH_STEP_M))
+    if samples > most:
+        raise TooLargeError(f"{samples} wavelengths per band: at most {most} (one per "
+                            f"{MIN_WAVELENGTH_STEP_M * 1e9:g} nm of the {widest_m * 1e9:g} nm band); each one is a "
+                            "full wave simulation")
 
 
 def source_lens_phase_rad(radius2_m2: np.ndarray, wavelength_m: float, source_distance_m: float,

@@ -8,6 +8,7 @@ without the torch checkpoint.
 
 from __future__ import annotations
 
+import io
 import json
 import warnings
 from pathlib import Path
@@ -17,7 +18,7 @@ import torch
 from torch import nn
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path
+from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import Reconstruction, ReconstructionNet
 
 EXPORT_SIZE_PX = 256  # the example frame traced for export
@@ -39,9 +40,9 @@ def export_torchscript(network: ReconstructionNet, path: Path, *, overwrite: boo
     with torch.no_grad(), warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the tracer's notes on the U-Net's size check, fixed at export
         traced = torch.jit.trace(HdrOnly(network.eval()), example, check_trace=False)
-    with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        traced.save(str(temporary))
-    return Path(path)
+    serialised = io.BytesIO()  # saved to a path, a full disk is a RuntimeError without the cause
+    torch.jit.save(traced, serialised)
+    return write_bytes_atomic(Path(path), serialised.getvalue(), overwrite=overwrite)
 
 
 def export_onnx(network: ReconstructionNet, path: Path, metadata: dict[str, str], *,
@@ -51,16 +52,16 @@ def export_onnx(network: ReconstructionNet, path: Path, metadata: dict[str, str]
     except ImportError as error:
         raise InputError("ONNX export needs the onnx package: pip install 'hdrcam[export]'") from error
     example = torch.rand(1, 3, EXPORT_SIZE_PX, EXPORT_SIZE_PX)
-    with atomic_path(Path(path), overwrite=overwrite) as temporary, warnings.catch_warnings():
+    serialised = io.BytesIO()  # in memory: a full disk then fails in write_bytes_atomic, with its cause
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the exporter's notes on the size check and InstanceNorm's mode
-        torch.onnx.export(HdrOnly(network.eval()), (example,), str(temporary), input_names=["ldr"],
+        torch.onnx.export(HdrOnly(network.eval()), (example,), serialised, input_names=["ldr"],
                           output_names=["hdr"], dynamo=False, opset_version=17,
                           dynamic_axes={"ldr": {2: "height", 3: "width"}, "hdr": {2: "height", 3: "width"}})
-        model = onnx.load(str(temporary))
-        for key, value in metadata.items():
-            model.metadata_props.add(key=key, value=value)
-        onnx.save(model, str(temporary))
-    return Path(path)
+    model = onnx.load_from_string(serialised.getvalue())
+    for key, value in metadata.items():
+        model.metadata_props.add(key=key, value=value)
+    return write_bytes_atomic(Path(path), model.SerializeToString(), overwrite=overwrite)
 
 
 class OnnxNetwork:

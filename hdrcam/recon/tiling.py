@@ -27,10 +27,15 @@ import numpy as np
 import scipy.ndimage
 import torch
 
+from hdrcam.limits import check_memory
 from hdrcam.recon.network import ReconstructionNet
 
 CLIP_LEVEL = 0.99  # a pixel whose brightest channel reaches this (relative to white) is clipped
 DEFAULT_CORE_PX = 512
+# memory per pixel, fast preset: a window through the network (measured: 118 bytes at 1088^2, x 4), and the
+# frame-wide arrays of the whole reconstruction (README: 24 MP in 3.1 GB, ~130 bytes, x 2)
+WINDOW_BYTES_PER_PIXEL = 512
+FRAME_BYTES_PER_PIXEL = 256
 DEFAULT_HALO_PX = 32  # measured: 16, 32 and 64 px give the same PSNR within 0.05 dB (1 MP, clustered)
 MULTIPLE_PX = 16  # the U-Net pools four times: a window's sides are multiples of this
 
@@ -116,6 +121,11 @@ def plan_regions(ldr: np.ndarray, *, psf_radius_px: int, adaptive: bool = True, 
     """The regions the network must run on: all of the frame, or (adaptive) the PSF's reach of its clipped
     pixels, grown by the cross-fade width; [] when adaptive and nothing clipped."""
     height, width = ldr.shape[:2]
+    check_memory(f"a {width} x {height} px frame", height * width * FRAME_BYTES_PER_PIXEL,
+                 "reconstruct a crop of the frame, or use a machine with more memory")
+    window_height, window_width = min(core_px, height) + 2 * halo_px, min(core_px, width) + 2 * halo_px
+    check_memory(f"--tile {core_px} with --halo {halo_px} ({window_width} x {window_height} px windows)",
+                 window_height * window_width * WINDOW_BYTES_PER_PIXEL, "use a smaller --tile or --halo")
     if not adaptive:
         return [_region(0, 0, height, width, core_px, halo_px)]
     clipped = clipped_mask(ldr)

@@ -11,13 +11,14 @@ Writes are atomic: a crash mid-write leaves the previous checkpoint intact.
 from __future__ import annotations
 
 import dataclasses
+import io
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_path
+from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import load_vgg19
@@ -28,9 +29,9 @@ SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "checkpoints" / "s
 
 def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:
     """Write ``state`` (see the module docstring) atomically."""
-    with atomic_path(Path(path), overwrite=overwrite) as temporary:
-        torch.save({"format": CHECKPOINT_FORMAT, **state}, temporary)
-    return Path(path)
+    serialised = io.BytesIO()  # torch.save to a path reports a full disk as a RuntimeError without the cause
+    torch.save({"format": CHECKPOINT_FORMAT, **state}, serialised)
+    return write_bytes_atomic(Path(path), serialised.getvalue(), overwrite=overwrite)
 
 
 def read_checkpoint(path: Path) -> dict:

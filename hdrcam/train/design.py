@@ -28,7 +28,8 @@ from torch import nn
 
 from hdrcam.data.scenes import SceneSource
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import write_text_atomic
+from hdrcam.limits import check_memory
+from hdrcam.io.atomic import check_destination_folder, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.energy import energy_regulariser
@@ -83,6 +84,11 @@ def _distributed() -> tuple[int, int]:
     return (dist.get_rank(), world) if world > 1 else (0, 1)
 
 
+TRAIN_BYTES_PER_PIXEL = 8192  # a training step per crop pixel (measured, fast preset: 4.3 kB, x 2)
+RUN_FILES = ("config.json", "log.jsonl", "checkpoint.pt", "model.pt", "psf.exr", "psf.png", "loss.png",
+             "heightmap.exr")
+
+
 def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: Path | None = None,
           random_vgg: bool = False, device: torch.device | None = None, quiet: bool = False,
           stop_after: int | None = None) -> dict:
@@ -95,16 +101,21 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     rank, world = _distributed()
     device = device or torch.device(f"cuda:{rank % max(torch.cuda.device_count(), 1)}"
                                     if torch.cuda.is_available() else "cpu")
-    if config.crop_px % 16:
-        raise InputError(f"--crop must be a multiple of 16, got {config.crop_px}")
+    if config.crop_px % 16 or config.crop_px < 32:
+        raise InputError(f"--crop must be a multiple of 16 and at least 32 (the U-Net halves it four times and "
+                         f"normalises what is left), got {config.crop_px}")
+    check_memory(f"--batch {config.batch} of --crop {config.crop_px}",
+                 config.batch * config.crop_px ** 2 * TRAIN_BYTES_PER_PIXEL, "use a smaller --batch or --crop")
     checkpoint_path = out / "checkpoint.pt"
-    if checkpoint_path.exists() and not resume:
+    if not resume and any((out / name).exists() for name in RUN_FILES):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     if resume and not checkpoint_path.exists():
         raise InputError(f"--resume: {checkpoint_path} does not exist")
+    check_destination_folder(out)  # before the model is built: an unusable --out fails at once
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:
         steps = config.steps
+        _check_same_run(checkpoint_path, saved["config"], config)
         config = TrainConfig.from_dict(saved["config"])
         config.steps = max(steps, config.steps)
 
@@ -129,7 +140,9 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     trained = _maybe_distributed(model, world, device)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=True)
+        # a new run claims the folder with config.json (published without replacing: a second run started
+        # into it at the same time fails here); the run's later files are its own
+        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=resume)
         log_lines = _log_lines(out / "log.jsonl", start)
     progress = Progress(min(config.steps, start + (stop_after or config.steps)) - start, f"design {out.name}") if rank == 0 and not quiet else None
     margin, last = model.capture.margin_px, {}
@@ -168,6 +181,15 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         if end == config.steps:
             _write_results(out, model, config, log_lines)
     return last
+
+
+def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig) -> None:
+    """Refuse to resume a run with other settings (seed, PSF, learning rate, ...): only ``steps`` may grow."""
+    wanted = config.as_dict()
+    for key in sorted((set(saved) | set(wanted)) - {"steps"}):
+        if saved.get(key) != wanted.get(key):
+            raise InputError(f"--resume: {checkpoint_path} was started with {key} {saved.get(key)!r}, this run asks "
+                             f"for {wanted.get(key)!r}; resume with the run's own options, or choose another --out")
 
 
 def _maybe_distributed(model: nn.Module, world: int, device: torch.device) -> nn.Module:

@@ -130,6 +130,9 @@ def _windshield_angle_deg(generator: torch.Generator | None) -> float:
     return low + (high - low) * position
 
 
+CAPTURE_BYTES_PER_PIXEL = 300  # capture_scene with its scene and frame (measured: 149 bytes a pixel at 1024^2, x 2)
+
+
 def capture_scene(scene: np.ndarray, psf: np.ndarray, profile: Profile, seed: int = 0) -> np.ndarray:
     """Render one frame: an (H + 2m) x (W + 2m) x 3 scene (m = PSF size // 2) -> H x W x 3 capture in [0, 1]."""
     capture = OpticalCapture(profile, psf=psf)

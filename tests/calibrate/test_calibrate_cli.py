@@ -97,9 +97,10 @@ def test_an_even_size_is_a_clear_error(pinhole_bracket, tmp_path, capsys):
 
 
 def test_darks_of_another_frame_size_are_refused(pinhole_bracket, tmp_path, capsys):
-    darks = tmp_path / "small"
+    small = tmp_path / "small"
     assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "flat:0",
-                 "--size", "256x192", "--out", str(darks)]) == 0
+                 "--size", "256x192", "--darks", "--out", str(small)]) == 0
+    darks = small / "darks"
     capsys.readouterr()
     assert main(["calibrate", "psf", str(pinhole_bracket), "--darks", str(darks), "--out", str(tmp_path / "r"),
                  "--profile", "simulated"]) == 1

@@ -63,7 +63,7 @@ def test_failed_capture_keeps_complete_frames_and_a_manifest_that_says_why(tmp_p
         with pytest.raises(Disconnected):
             capture.shoot(plan)
     manifest = json.loads((tmp_path / "bracket.json").read_text())
-    assert manifest["status"] == "failed" and "disconnected" in manifest["error"]
+    assert manifest["status"] == "incomplete" and "disconnected" in manifest["error"]
     assert [f["file"] for f in manifest["frames"]] == ["frame-00.dng"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bracket.json", "frame-00.dng"]
 

@@ -171,7 +171,7 @@ def test_acceptance_a_disconnect_mid_bracket_keeps_the_frames_taken(monkeypatch,
     errors = [line for line in err.splitlines() if "error" in line]  # (the progress bar also writes to stderr)
     assert status == 1 and len(errors) == 1 and "disconnected" in errors[0]
     manifest = json.loads((out / "bracket.json").read_text())
-    assert manifest["status"] == "failed" and [f["exposure_label"] for f in manifest["frames"]] == ["1/1000"]
+    assert manifest["status"] == "incomplete" and [f["exposure_label"] for f in manifest["frames"]] == ["1/1000"]
     assert (out / manifest["frames"][0]["file"]).is_file()
 
 

@@ -9,6 +9,7 @@ from hdrcam.capture.notches import SHUTTER_NOTCHES, bracket_notches, nearest_shu
 from hdrcam.capture.scene import PointSource, Scene, load_scene
 from hdrcam.capture.simulated import BASE_ISO, SimulatedCamera
 from hdrcam.colorimetry import camera_from_srgb
+from hdrcam.errors import InputError
 from hdrcam.optics.analytic import dirac
 from hdrcam.profiles import load_profile
 from tests.capture.helpers import small_camera
@@ -60,9 +61,9 @@ def test_shutter_true_times_are_powers_of_two_and_brackets_3_ev_apart():
     assert [n.label for n in notches] == ["1/4000", "1/500", "1/60", "1/8", '1"']
     assert np.allclose(np.diff(np.log2([n.true_s for n in notches])), 3.0)
     assert nearest_shutter(1 / 125).true_s == 2.0 ** -7
-    with pytest.raises(ValueError, match="30 s"):
+    with pytest.raises(InputError, match="30 s"):
         bracket_notches(1.0, 5, 3.0)
-    with pytest.raises(ValueError, match="1/3 EV"):
+    with pytest.raises(InputError, match="1/3 EV"):
         bracket_notches(1 / 4000, 3, 0.5)
     assert len(SHUTTER_NOTCHES) == 55
 

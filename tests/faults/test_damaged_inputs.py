@@ -1,0 +1,191 @@
+"""Damaged and adversarial inputs: truncated files, changed frames, darks for lights, mixed cameras, bad pixels,
+1 x 1 images, link loops, odd names. Each is refused with exit 1 and one line, or handled (exit 0); never exit 3."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hdrcam.cli import main
+from hdrcam.io.exr import write_exr
+from tests.faults.helpers import assert_failed_with_one_line, run, snapshot, temporaries
+
+
+def copy_bracket(source: Path, target: Path) -> Path:
+    shutil.copytree(source, target)
+    return target
+
+
+def test_a_frame_changed_after_capture_is_refused_by_fuse_and_calibrate_naming_it(workspace, tmp_path, capsys):
+    bracket = copy_bracket(workspace.bracket, tmp_path / "bracket")
+    frame = bracket / "frame-01.dng"
+    data = bytearray(frame.read_bytes())
+    data[-100] ^= 0xFF  # one pixel's byte
+    frame.write_bytes(bytes(data))
+    for argv in (["fuse", bracket, "--profile", "simulated", "--out", tmp_path / "f.exr"],
+                 ["calibrate", "psf", bracket, "--profile", "simulated", "--out", tmp_path / "cal"]):
+        assert_failed_with_one_line(run(argv, capsys), 1, str(frame), "sha256")
+    assert not (tmp_path / "f.exr").exists() and not (tmp_path / "cal").exists()
+
+
+def test_darks_given_as_lights_and_lights_as_darks_are_refused(workspace, tmp_path, capsys):
+    darks = workspace.bracket / "darks"
+    assert_failed_with_one_line(run(["fuse", darks, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys),
+                                1, str(darks), "dark frames where light frames are expected")
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--darks", workspace.bracket, "--profile",
+                                     "simulated", "--out", tmp_path / "f.exr"], capsys), 1, "light frames where dark")
+
+
+def test_a_bracket_mixing_two_camera_models_is_refused_naming_the_frame(workspace, tmp_path, capsys):
+    other = tmp_path / "frame-02.dng"  # the same frame as if from another body (its Model tag changed)
+    data = (workspace.bracket / "frame-02.dng").read_bytes()
+    assert b"ILCE-7\0" in data
+    other.write_bytes(data.replace(b"ILCE-7\0", b"ILCE-9\0"))
+    mixed = [workspace.bracket / "frame-00.dng", workspace.bracket / "frame-01.dng", other]
+    assert_failed_with_one_line(run(["fuse", *mixed, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys),
+                                1, "camera model", str(other))
+
+
+def test_truncated_raw_and_incomplete_manifests_are_refused(workspace, tmp_path, capsys):
+    bracket = copy_bracket(workspace.bracket, tmp_path / "bracket")
+    frame = bracket / "frame-02.dng"
+    frame.write_bytes(frame.read_bytes()[:frame.stat().st_size // 2])
+    files = [bracket / "frame-00.dng", bracket / "frame-01.dng", frame]
+    assert_failed_with_one_line(run(["fuse", *files, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys),
+                                1, str(frame))
+    manifest = json.loads((bracket / "bracket.json").read_text())
+    manifest.update(status="incomplete", error="interrupted (SIGTERM)")
+    (bracket / "bracket.json").write_text(json.dumps(manifest))
+    assert_failed_with_one_line(run(["fuse", bracket, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys),
+                                1, "incomplete", "--resume")
+
+
+def test_damaged_exr_files_are_refused_by_every_reader(shared_data, tmp_path, capsys):
+    damaged = sorted(p for p in (shared_data / "damaged-exr").iterdir() if not p.name.startswith("LICENSE"))
+    assert damaged
+    for index, path in enumerate(damaged):
+        source = tmp_path / f"damaged-{index}.exr"
+        shutil.copyfile(path, source)
+        for argv in (["reconstruct", source, "--out", tmp_path / f"r{index}"],
+                     ["simulate", source, "--psf", "dirac", "--out", tmp_path / f"s{index}.exr"],
+                     ["fabricate", source, "--profile", "simulated", "--out", tmp_path / f"f{index}"]):
+            assert_failed_with_one_line(run(argv, capsys), 1, str(source))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"damaged-{i}.exr" for i in range(len(damaged))]
+
+
+@pytest.mark.parametrize("value, words", [(np.nan, "NaN"), (np.inf, "NaN or Inf"), (-0.5, "down to -0.5")])
+def test_frames_with_nan_inf_or_negative_pixels_are_refused(value, words, tmp_path, capsys):
+    pixels = np.full((32, 32, 3), 0.25, np.float32)
+    pixels[5, 7, 1] = value
+    source = tmp_path / "frame.exr"
+    write_exr_unchecked(source, pixels)
+    for argv in (["reconstruct", source, "--out", tmp_path / "r"], ["destreak", source, "--out", tmp_path / "d"]):
+        assert_failed_with_one_line(run(argv, capsys), 1, str(source), words)
+
+
+def write_exr_unchecked(path: Path, pixels: np.ndarray) -> None:
+    """An EXR holding what write_exr refuses to write (NaN, Inf): as another program might."""
+    import OpenEXR
+
+    channels = {name: np.ascontiguousarray(pixels[..., i]) for i, name in enumerate("RGB")}
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels).write(str(path))
+
+
+def test_a_scene_with_negative_pixels_is_simulated_with_a_warning(tmp_path, capsys):
+    scene = np.full((40, 40, 3), 2.0, np.float32)
+    scene[3:9, 3:9] = -1.0
+    write_exr(tmp_path / "scene.exr", scene)
+    with pytest.warns(UserWarning, match="negative .* taken as 0"):
+        status, _, _ = run(["simulate", tmp_path / "scene.exr", "--psf", "dirac", "--out", tmp_path / "f.exr"],
+                           capsys)
+    assert status == 0
+
+
+@pytest.mark.parametrize("argv", [
+    lambda t: ["reconstruct", t / "one.exr", "--out", t / "out"],
+    lambda t: ["destreak", t / "one.exr", "--out", t / "out"],
+    lambda t: ["simulate", t / "one.exr", "--psf", "dirac", "--out", t / "out.exr"],
+    lambda t: ["fabricate", t / "one.exr", "--profile", "simulated", "--out", t / "out"],
+    lambda t: ["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac",
+               "--size", "1x1", "--stops", "1", "--out", t / "out"],
+])
+def test_one_pixel_images_end_in_success_or_one_line(argv, tmp_path, capsys):
+    write_exr(tmp_path / "one.exr", np.full((1, 1, 3), 0.5, np.float32), attributes={"pixel_pitch_m": 32e-6})
+    status, _, lines = run(argv(tmp_path), capsys)
+    assert status in (0, 1, 2), lines
+    if status:
+        assert_failed_with_one_line((status, "", lines), status)
+    assert temporaries(tmp_path) == []
+
+
+def test_symlink_loops_as_input_and_output_are_refused(workspace, tmp_path, capsys):
+    loop = tmp_path / "loop.exr"
+    os.symlink(loop, loop)
+    assert_failed_with_one_line(run(["reconstruct", loop, "--out", tmp_path / "r"], capsys), 1, str(loop))
+    folder_loop = tmp_path / "folder-loop"
+    os.symlink(folder_loop, folder_loop)
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out",
+                                     folder_loop / "f.exr"], capsys), 1, str(folder_loop))
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out", loop], capsys),
+                                1, str(loop), "exists")
+    assert os.readlink(loop) == str(loop)
+
+
+def test_non_utf8_names_work_and_long_names_are_refused_in_one_line(workspace, tmp_path, capsys):
+    odd = Path(os.fsdecode(bytes(tmp_path) + b"/caf\xe9-\xff"))
+    odd.mkdir()
+    shutil.copyfile(workspace.frame, odd / "frame.exr")
+    status, _, lines = run(["reconstruct", odd / "frame.exr", "--out", odd / "out"], capsys)
+    assert status == 0 and (odd / "out" / "frame.exr").is_file(), lines
+    line = assert_failed_with_one_line(run(["reconstruct", odd / "frame.exr", "--out", odd / "out"], capsys), 1)
+    assert "\\udcff" in line or "\\xff" in line  # the name as it is, escaped, on one line
+    long_name = tmp_path / ("x" * 300 + ".exr")
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out", long_name],
+                                    capsys), 1, "too long")
+    newline = tmp_path / "two\nlines"
+    line = assert_failed_with_one_line(run(["reconstruct", newline, "--out", tmp_path / "r"], capsys), 1)
+    assert "two\\nlines" in line
+    assert temporaries(tmp_path) == []
+
+
+def test_an_empty_folder_to_ingest_is_one_line_on_stderr(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    status, out, lines = run(["ingest", tmp_path / "empty"], capsys)
+    assert_failed_with_one_line((status, out, lines), 1, str(tmp_path / "empty"), "no brackets")
+    assert out == ""
+
+
+def test_a_bug_is_exit_3_in_one_line_and_hdrcam_debug_shows_the_traceback(monkeypatch, capsys):
+    from hdrcam.cli import fabricate_command
+
+    def broken(arguments):
+        return 1 / 0
+
+    monkeypatch.setattr(fabricate_command, "run", broken)
+    status, _, lines = run(["fabricate", "x.exr"], capsys)
+    assert status == 3 and len(lines) == 1 and "internal error: ZeroDivisionError" in lines[0]
+    monkeypatch.setenv("HDRCAM_DEBUG", "1")
+    capsys.readouterr()
+    assert main(["fabricate", "x.exr"]) == 3
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_usage_errors_are_exit_2_in_one_line(capsys):
+    status, _, lines = run(["fuse", "--no-such-option"], capsys)
+    assert status == 2 and len(lines) == 1
+
+
+def test_a_full_standard_output_is_exit_1_in_one_line(workspace, tmp_path, capsys, monkeypatch):
+    """As `hdrcam ... > /dev/full`: a failed write to stdout is the command's failure (exit 1), not a bug."""
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        status = main(["fabricate", str(workspace.heightmap), "--profile", "simulated", "--out", str(tmp_path / "f")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(lines) == 1 and "cannot write to standard output" in lines[0], lines
+    assert temporaries(tmp_path) == []

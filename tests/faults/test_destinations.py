@@ -1,0 +1,114 @@
+"""Every command against destinations it cannot use: under a file, read-only, full, already written, a file
+appearing while it writes. Each ends with exit 1 and one line, changes no existing byte, leaves no partial file."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from hdrcam.io import atomic
+from tests.faults.conftest import COMMANDS, command_lines
+from tests.faults.helpers import assert_failed_with_one_line, file_size_limit, run, snapshot, temporaries
+
+
+@pytest.mark.parametrize("name", COMMANDS + ("demo",))
+def test_a_destination_under_a_regular_file_is_refused_with_its_path(name, workspace, tmp_path, capsys):
+    blocker = tmp_path / "blocker"
+    blocker.write_bytes(b"not a folder")
+    out = blocker / "out"
+    argv = ["demo", "--out", out] if name == "demo" else command_lines(workspace, out)[name]
+    before = snapshot(workspace.root)
+    line = assert_failed_with_one_line(run(argv, capsys), 1, str(blocker))
+    assert "not a folder" in line
+    assert blocker.read_bytes() == b"not a folder" and snapshot(workspace.root) == before
+
+
+@pytest.mark.parametrize("name", COMMANDS)
+def test_a_read_only_destination_is_refused_before_any_work(name, workspace, tmp_path, capsys, monkeypatch):
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    folder.chmod(0o555)
+    if os.geteuid() == 0:  # root may write anyway; the permission check then sees what any user would
+        access = os.access
+        monkeypatch.setattr(os, "access", lambda path, mode, **options: (
+            False if Path(path) == folder and mode & os.W_OK else access(path, mode, **options)))
+    try:
+        assert_failed_with_one_line(run(command_lines(workspace, folder / "out")[name], capsys), 1, str(folder),
+                                    "permission denied")
+    finally:
+        folder.chmod(0o755)
+    assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", COMMANDS)
+def test_a_full_destination_fails_with_one_line_and_leaves_no_partial_file(name, workspace, tmp_path, capsys):
+    out = tmp_path / "out"
+    before = snapshot(workspace.root)
+    with file_size_limit(1024):  # every output of these commands is larger
+        result = run(command_lines(workspace, out)[name], capsys)
+    assert_failed_with_one_line(result, 1, str(out), "file too large")
+    assert temporaries(tmp_path) == [] and snapshot(workspace.root) == before
+    for path in out.rglob("*"):  # what was published before the failure is whole, never cut at the limit
+        assert not path.is_file() or path.stat().st_size != 1024
+
+
+@pytest.mark.parametrize("name", COMMANDS)
+def test_existing_outputs_are_refused_and_keep_every_byte(name, workspace, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = command_lines(workspace, out)[name]
+    assert run(argv, capsys)[0] == 0
+    written = snapshot(out)
+    line = assert_failed_with_one_line(run(argv, capsys), 1, str(out))
+    assert "exists" in line or "already holds a run" in line
+    assert snapshot(out) == written and temporaries(tmp_path) == []
+
+
+@pytest.mark.parametrize("name", ("fuse", "reconstruct", "ingest", "capture", "design"))
+def test_a_file_appearing_between_check_and_write_is_left_alone(name, workspace, tmp_path, capsys, monkeypatch):
+    """Another program creates the output just before it is published: it keeps its bytes, the command fails."""
+    intruders = []
+    flush = atomic._flush_to_disk
+
+    def someone_else_writes_first(temporary):
+        final = temporary.parent / (temporary.name[1:].split(".")[0] + temporary.suffix)
+        if not intruders and not final.exists():
+            final.write_bytes(b"another program's file")
+            intruders.append(final)
+        flush(temporary)
+
+    monkeypatch.setattr(atomic, "_flush_to_disk", someone_else_writes_first)
+    out = tmp_path / "out"
+    result = run(command_lines(workspace, out)[name], capsys)
+    assert intruders, "no output was published"
+    assert_failed_with_one_line(result, 1, str(intruders[0]), "appeared while it was being written")
+    assert intruders[0].read_bytes() == b"another program's file" and temporaries(tmp_path) == []
+
+
+def test_overwrite_replaces_whole_files_and_never_an_input(workspace, tmp_path, capsys):
+    out = tmp_path / "fused.exr"
+    argv = ["fuse", workspace.bracket, "--profile", "simulated", "--out", out]
+    assert run(argv, capsys)[0] == 0
+    assert run(argv + ["--overwrite"], capsys)[0] == 0
+    assert temporaries(tmp_path) == []
+    before = snapshot(workspace.root)
+    frame = workspace.bracket / "frame-00.dng"
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out", frame,
+                                     "--overwrite"], capsys), 1, str(frame), "is also an input")
+    assert snapshot(workspace.root) == before
+
+
+@pytest.mark.parametrize("argv, mentions", [
+    (lambda ws, t: ["fuse", ws.bracket, "--profile", "simulated", "--out", t / "x.png"], ("x.png",)),
+    (lambda ws, t: ["simulate", "night", "--psf", "dirac", "--size", "32", "32", "--out", t / "x.exr",
+                    "--truth", t / "x.exr"], ("x.exr",)),
+    (lambda ws, t: ["reconstruct", ws.frame, t / "copy" / ws.frame.name, "--out", t / "out"], ("frame.exr",)),
+])
+def test_two_outputs_of_one_command_with_the_same_name_are_refused_before_writing(argv, mentions, workspace,
+                                                                                  tmp_path, capsys):
+    (tmp_path / "copy").mkdir()
+    (tmp_path / "copy" / workspace.frame.name).write_bytes(workspace.frame.read_bytes())
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert_failed_with_one_line(run(argv(workspace, tmp_path), capsys), 1, *mentions)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
