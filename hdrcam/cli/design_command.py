@@ -7,13 +7,15 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hdrcam.cli.arguments import compute_device, positive_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.recon.presets import PRESETS
-from hdrcam.train.checkpoint import read_checkpoint
-from hdrcam.train.config import TrainConfig
-from hdrcam.train.optical_capture import FIXED_PSFS, TRAINABLE_DOES
+from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
+
+if TYPE_CHECKING:
+    from hdrcam.train.config import TrainConfig
 
 
 def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> None:
@@ -59,6 +61,8 @@ def register(commands) -> None:
 
 
 def _config(arguments: argparse.Namespace, **fields) -> TrainConfig:
+    from hdrcam.train.config import TrainConfig
+
     config = TrainConfig(data=arguments.data, steps=arguments.steps, batch=arguments.batch, crop_px=arguments.crop,
                          seed=arguments.seed, checkpoint_every=arguments.checkpoint_every, **fields)
     if arguments.lr:
@@ -88,7 +92,7 @@ def run_design(arguments: argparse.Namespace) -> int:
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:
-    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
 
     checkpoint = arguments.checkpoint or SHIPPED_CHECKPOINT
     state = read_checkpoint(checkpoint)

@@ -6,15 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-import numpy as np
-
 from hdrcam.cli.arguments import add_profile_option
-from hdrcam.hdr.bracket_input import bracket_paths
-from hdrcam.hdr.fuse import fuse
 from hdrcam.io.atomic import check_writable
-from hdrcam.io.exr import write_exr
-from hdrcam.io.png import write_png
-from hdrcam.preview import tonemap_rgb
 from hdrcam.profiles import load_profile
 
 
@@ -32,6 +25,14 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hdrcam.hdr.bracket_input import bracket_paths
+    from hdrcam.hdr.fuse import fuse
+    from hdrcam.io.exr import write_exr
+    from hdrcam.io.png import write_png
+    from hdrcam.preview import tonemap_rgb
+
     profile = load_profile(arguments.profile)
     out: Path = arguments.out
     preview = out.with_suffix(".png")

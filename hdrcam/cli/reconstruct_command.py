@@ -10,13 +10,10 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-import torch
-
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_writable
-from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 
 def register(commands) -> None:
@@ -52,6 +49,9 @@ def output_paths(out: Path, source: Path) -> tuple[Path, Path, Path]:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
     from hdrcam.io.exr import write_exr
     from hdrcam.io.ldr_frame import read_ldr_frame
     from hdrcam.io.png import write_png

@@ -12,11 +12,10 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from hdrcam.cli.arguments import positive_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_writable
+from hdrcam.train.choices import FIXED_PSFS
 
 
 def register(commands) -> None:
@@ -36,13 +35,15 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+
     from hdrcam.data.hdr_folder import read_hdr_image
     from hdrcam.data.night_scene import night_scene
     from hdrcam.data.saturation import clipped_fraction, scale_to_clipped_fraction
     from hdrcam.io.exr import write_exr
     from hdrcam.profiles import load_profile
     from hdrcam.train.checkpoint import load_model
-    from hdrcam.train.optical_capture import FIXED_PSFS, capture_scene, fixed_psf
+    from hdrcam.train.optical_capture import capture_scene, fixed_psf
 
     if not 0.0 < arguments.clipped_fraction < 1.0:
         raise InputError("--clipped-fraction must lie between 0 and 1")
