@@ -8,6 +8,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import add_profile_option
 from hdrcam.io.atomic import check_writable
+from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS
 from hdrcam.profiles import load_profile
 
 
@@ -20,6 +21,8 @@ def register(commands) -> None:
     parser.add_argument("--variance", action="store_true", help="add per-channel variance channels")
     parser.add_argument("--half", action="store_true", help="write half floats (refused above 65504)")
     parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--demosaic", choices=FLOAT_METHODS, default=DEFAULT_METHOD,
+                        help=f"demosaicing (default {DEFAULT_METHOD}: fast; menon2007: sharper edges, slower)")
     add_profile_option(parser)
     parser.set_defaults(run=run)
 
@@ -41,7 +44,7 @@ def run(arguments: argparse.Namespace) -> int:
         check_writable(path, overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
-                 with_variance=arguments.variance)
+                 with_variance=arguments.variance, demosaic_method=arguments.demosaic)
     channels = [image.rgb[..., 0], image.rgb[..., 1], image.rgb[..., 2], image.clipped.astype(np.float32)]
     names = ["R", "G", "B", "clipped"]
     if image.variance is not None:

@@ -13,6 +13,7 @@ from pathlib import Path
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_writable
+from hdrcam.io.demosaic import DEFAULT_METHOD, METHODS
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 
@@ -38,6 +39,9 @@ def register(commands) -> None:
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--precision", default="float32", choices=("float32", "float16", "bfloat16"),
                         help="network precision; half precisions on CUDA only (they are slow on CPUs)")
+    parser.add_argument("--demosaic", choices=METHODS, default=DEFAULT_METHOD,
+                        help=f"demosaicing of RAW inputs (default {DEFAULT_METHOD}: fast; edge-aware, menon2007: "
+                             "sharper edges, slower)")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -84,7 +88,7 @@ def run(arguments: argparse.Namespace) -> int:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
-    frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
+    frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
