@@ -56,6 +56,8 @@ def run(arguments: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
+    from tqdm import tqdm
+
     from hdrcam.io.exr import write_exr
     from hdrcam.io.ldr_frame import read_ldr_frame
     from hdrcam.io.png import write_png
@@ -63,7 +65,6 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.progress import Progress
     from hdrcam.api import reconstruct
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
@@ -91,7 +92,7 @@ def run(arguments: argparse.Namespace) -> int:
     frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
-    progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
+    progress = tqdm(total=sum(region.windows for plan in plans for region in plan), desc="reconstruct", unit="window")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
@@ -121,4 +122,5 @@ def run(arguments: argparse.Namespace) -> int:
                           "streak_fit": result.streak_fit, "consistency": result.consistency.summary(),
                           "fallback_fraction": round(result.fallback_fraction, 4),
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
+    progress.close()
     return 0

@@ -165,7 +165,7 @@ def _run_region(network, ldr: np.ndarray, region: Region, halo_px: int, blend: i
             total[top:top + window_height, left:left + window_width] += output * weight
             weights[top:top + window_height, left:left + window_width] += weight
             if progress:
-                progress.step()
+                progress.update()
     core = (slice(halo_px, halo_px + region.height), slice(halo_px, halo_px + region.width))
     return total[core] / weights[core]
 
