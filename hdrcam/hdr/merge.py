@@ -20,13 +20,13 @@ in which the exposure-ratio sums (float64) are added.
 from __future__ import annotations
 
 import dataclasses
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.parallel import strips, worker_threads
 from hdrcam.io.raw import RawFrame
 from hdrcam.profiles import CameraSpec
 
@@ -105,15 +105,6 @@ def first_clipped_dn(black_dn: float, threshold_dn: float) -> int:
     return int(np.argmax(above)) if above.any() else 65536
 
 
-def strips(height: int, rows: int | None = None) -> list[slice]:
-    """Row slices of at most ``rows`` (default STRIP_ROWS) rows covering ``height``."""
-    rows = rows or STRIP_ROWS
-    return [slice(top, min(top + rows, height)) for top in range(0, height, rows)]
-
-
-def worker_threads() -> int:
-    """Threads for per-pixel work: the cores this process may use."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def clip_level_dn(frames: list[RawFrame]) -> float:
@@ -146,7 +137,7 @@ def estimate_exposures(signals: list[np.ndarray], masks: list[np.ndarray], label
     floor biases the ratio), while dropping the empty background, whose noise would swamp a point source.
     """
     ratios = []
-    parts = strips(signals[0].shape[0])
+    parts = strips(signals[0].shape[0], STRIP_ROWS)
     for k in range(len(signals) - 1):  # masks: clipped samples, not dilated (each sample stands alone here)
         labelled = labelled_s[k + 1] / labelled_s[k]
         other = k + 2 if k + 2 < len(signals) else k - 1
@@ -229,11 +220,11 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
         variance[rows] = np.where(none, np.inf, 1.0 / np.maximum(information, 1e-30))
 
     with ThreadPoolExecutor(threads or worker_threads()) as pool:
-        list(pool.map(prepare, strips(height)))
+        list(pool.map(prepare, strips(height, STRIP_ROWS)))
         exposures = estimate_exposures(signals, clipped, labelled, threshold, np.sqrt(read_variance), notes, pool) \
             if estimate_ratios and len(frames) > 1 else labelled.copy()
         masks = list(pool.map(dilated, clipped))
-        list(pool.map(merge_strip, strips(height)))
+        list(pool.map(merge_strip, strips(height, STRIP_ROWS)))
     to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
     variance *= to_relative ** 2
     variance[everywhere] = np.float32(np.finfo(np.float32).max)

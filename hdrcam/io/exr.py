@@ -20,6 +20,7 @@ import OpenEXR
 
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
+from hdrcam.parallel import worker_threads
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
 _REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
@@ -146,6 +147,8 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
         header[key] = value.item() if isinstance(value, np.generic) else value
+    if OpenEXR.global_thread_count() < worker_threads():
+        OpenEXR.set_global_thread_count(worker_threads())  # ZIP compression of scanline blocks on every core
     with atomic_path(Path(path), overwrite=overwrite) as temporary:
         OpenEXR.File(header, channels).write(str(temporary))
     return Path(path)
