@@ -105,8 +105,6 @@ def first_clipped_dn(black_dn: float, threshold_dn: float) -> int:
     return int(np.argmax(above)) if above.any() else 65536
 
 
-
-
 def clip_level_dn(frames: list[RawFrame]) -> float:
     """Measured clip level above black: the highest value of the longest frame if many pixels share it
     (compressed RAWs clip below the nominal white level), else the white level."""
