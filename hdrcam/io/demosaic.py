@@ -11,14 +11,16 @@ frames with known truth; table in the README):
   integer data; several times slower, and its import (colour-science) costs about a second.
 
 Each sample is kept where it was measured; the output is float32 in the input's units. OpenCV and
-colour-demosaicing are imported on first use: the command line reads METHODS without them.
+colour-demosaicing (and numpy) are imported on first use: the command line reads METHODS without them.
 """
 
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 CFA_CHANNELS = {"R": 0, "G": 1, "B": 2}  # RGB channel index of each CFA colour
 METHODS = ("bilinear", "edge-aware", "menon2007")
@@ -26,13 +28,15 @@ FLOAT_METHODS = ("bilinear", "menon2007")  # those that take float (HDR) data
 DEFAULT_METHOD = "bilinear"
 # OpenCV names a Bayer layout by the 2 x 2 tile that starts at its second row and column
 _OPENCV_LAYOUT = {"RGGB": "BG", "BGGR": "RG", "GRBG": "GB", "GBRG": "GR"}
-_GREEN_WEIGHTS = np.array([[0, 1, 0], [1, 4, 1], [0, 1, 0]], np.float32) / 4
-_RED_BLUE_WEIGHTS = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32) / 4
+_GREEN_WEIGHTS = ((0, 1, 0), (1, 4, 1), (0, 1, 0))  # / 4: OpenCV's bilinear interpolation
+_RED_BLUE_WEIGHTS = ((1, 2, 1), (2, 4, 2), (1, 2, 1))
 
 
 def cfa_masks(shape: tuple[int, int], pattern: str) -> np.ndarray:
     """3 x H x W float32 indicator of which CFA colour each pixel samples (``pattern``: the 2 x 2 tile at the
     top-left pixel, row-major, e.g. "RGGB")."""
+    import numpy as np
+
     masks = np.zeros((3, *shape), np.float32)
     for position, colour in enumerate(pattern):
         row, column = divmod(position, 2)
@@ -51,6 +55,7 @@ def demosaic(bayer: np.ndarray, pattern: str, method: str = DEFAULT_METHOD) -> n
     if method not in METHODS:
         raise ValueError(f"unknown demosaicing method {method!r}; choose from {', '.join(METHODS)}")
     import cv2
+    import numpy as np
 
     integer = bayer.dtype in (np.uint8, np.uint16)
     if method == "menon2007":
@@ -68,7 +73,7 @@ def demosaic(bayer: np.ndarray, pattern: str, method: str = DEFAULT_METHOD) -> n
     masks = cfa_masks(bayer.shape, pattern)
     rgb = np.empty((*bayer.shape, 3), np.float32)
     for channel in range(3):
-        weights = _GREEN_WEIGHTS if channel == 1 else _RED_BLUE_WEIGHTS
+        weights = np.array(_GREEN_WEIGHTS if channel == 1 else _RED_BLUE_WEIGHTS, np.float32) / 4
         rgb[..., channel] = cv2.filter2D(np.ascontiguousarray(bayer * masks[channel], np.float32), -1, weights,
                                          borderType=cv2.BORDER_REFLECT_101)
     return rgb
