@@ -14,6 +14,7 @@ Usage: python tools/bench_demosaic.py [--raw FILE.ARW] [--out tools/results/demo
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
 from pathlib import Path
@@ -98,6 +99,7 @@ def main() -> None:
         per_24mp = min(times) * 24e6 / real.size
         lines.append(f"| {label} | " + " | ".join(f"{s:.2f}" for s in scores) + f" | {per_24mp:.2f} |")
         print(lines[-1], flush=True)
+    lines += ["", f"Load average (1 min) at the end: {os.getloadavg()[0]:.1f}."]
     text = "\n".join(lines) + "\n"
     print(text)
     arguments.out.parent.mkdir(parents=True, exist_ok=True)

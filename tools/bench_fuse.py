@@ -10,6 +10,7 @@ Usage: python tools/bench_fuse.py [--bracket DIR] [--repeats 3] [--out tools/res
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -43,6 +44,7 @@ def measure(bracket: Path, repeats: int, scratch: Path) -> list[str]:
     command = [str(Path(sys.executable).parent / "hdrcam"), "fuse", str(bracket), "--profile", PROFILE,
                "--overwrite", "--out", str(scratch / "fused.exr")]
     runs: dict[str, list[float]] = {"rawpy read": [], "hdrcam.fuse": [], "hdrcam fuse (command)": []}
+    load_before = os.getloadavg()[0]
     for _ in range(repeats):
         runs["rawpy read"].append(seconds(lambda: read_with_rawpy(paths)))
         runs["hdrcam.fuse"].append(seconds(lambda: hdrcam.fuse([bracket], profile=PROFILE)))
@@ -54,7 +56,7 @@ def measure(bracket: Path, repeats: int, scratch: Path) -> list[str]:
     for label, times in runs.items():
         median = statistics.median(times)
         lines.append(f"| {label} | {median:.2f} | {median / floor:.1f} |")
-    return lines
+    return lines + ["", f"Load average (1 min) {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end."]
 
 
 def main() -> None:

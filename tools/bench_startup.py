@@ -9,6 +9,7 @@ Usage: python tools/bench_startup.py [--repeats 11] [--out tools/results/startup
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -49,6 +50,7 @@ def main() -> None:
     for label, seconds in runs.items():
         median = statistics.median(seconds)
         lines.append(f"| `{label}` | {median:.3f} | {median / reference:.2f} |")
+    lines += ["", f"Load average (1 min) at the end: {os.getloadavg()[0]:.1f}."]
     text = "\n".join(lines) + "\n"
     print(text)
     arguments.out.parent.mkdir(parents=True, exist_ok=True)
