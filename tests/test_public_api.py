@@ -39,3 +39,18 @@ def test_fuse_is_the_library_merge():
     data = Path(__file__).parent / "hdr" / "data"
     image = hdrcam.fuse([data / "bracket-96x64"], profile="simulated", with_variance=True)
     np.testing.assert_array_equal(image.rgb, np.load(data / "bracket-96x64-fused-before-threads.npz")["rgb"])
+
+
+def test_finetune_design_and_evaluate_through_the_api(tmp_path):
+    from hdrcam.io.exr import write_exr
+    from hdrcam.train.checkpoint import load_model
+
+    psf_path = write_exr(tmp_path / "psf.exr", load_model().psf.transpose(1, 2, 0), channel_names=("R", "G", "B"))
+    tuned = hdrcam.finetune(psf_path, tmp_path / "tuned", steps=2, batch=1, crop_px=32, device="cpu", quiet=True)
+    designed = hdrcam.design(tmp_path / "designed", psf="dirac", steps=1, batch=1, crop_px=32, device="cpu", quiet=True)
+    assert tuned["step"] == 2 and designed["step"] == 1 and np.isfinite(tuned["total"])
+    assert (tmp_path / "tuned" / "model.pt").is_file() and (tmp_path / "designed" / "model.pt").is_file()
+    rows, examples = hdrcam.evaluate_checkpoints({"tuned": tmp_path / "tuned" / "model.pt"}, size_px=64, count=1)
+    methods = {row.method for row in rows}
+    assert methods == {"ldr", "hdrcnn-blend", "tuned", "tuned-network"} and len(examples) == 1
+    assert all(np.isfinite(row.metrics["psnr_linear"]) for row in rows)
