@@ -26,15 +26,15 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
-from hdrcam.parallel import strips, worker_threads
 from hdrcam.io.raw import RawFrame
+from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
 CLIP_MARGIN = 0.01  # of the black-to-clip range
 MIN_RATIO_SAMPLES = 200
 RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
 SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame, for ratio estimation
-STRIP_ROWS = 16  # rows per work item: 5 frames x 16 rows x 6000 px of float32 (1.9 MB) stay in the cache
+STRIP_ROWS = 16  # rows per work item (5 frames x 16 rows x 6000 px of float32: 1.9 MB of temporaries)
 
 
 @dataclasses.dataclass(frozen=True)
