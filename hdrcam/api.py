@@ -16,7 +16,8 @@ import torch
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
-from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX, TileReport, clipped_mask, reconstruct_frame
+from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 FRAME_RANGE_SLACK = 0.01  # black-level noise and demosaicing overshoot just outside [0, 1] are clipped, not refused
 

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import cv2
 import numpy as np
+
+from hdrcam.parallel import strips, worker_threads
 
 
 def log_psf_rgb(psf: np.ndarray, decades: float = 5.0) -> np.ndarray:
@@ -39,10 +43,12 @@ def _finite_rgb(strip: np.ndarray) -> np.ndarray:
 
 def log_average_luminance(hdr_rgb: np.ndarray) -> float:
     """exp(mean(log(Y + 1e-6))) of a linear RGB image (Rec. 709 luminance)."""
-    total = 0.0
-    for top in range(0, hdr_rgb.shape[0], STRIP_ROWS):
-        luminance = _finite_rgb(hdr_rgb[top:top + STRIP_ROWS]) @ REC709_LUMINANCE
-        total += float(np.log(luminance.astype(np.float64) + 1e-6).sum())
+    def log_sum(rows: slice) -> float:
+        luminance = _finite_rgb(hdr_rgb[rows]) @ REC709_LUMINANCE
+        return float(np.log(luminance.astype(np.float64) + 1e-6).sum())
+
+    with ThreadPoolExecutor(worker_threads()) as pool:
+        total = sum(pool.map(log_sum, strips(hdr_rgb.shape[0], STRIP_ROWS)), 0.0)  # added in strip order
     return float(np.exp(total / (hdr_rgb.shape[0] * hdr_rgb.shape[1])))
 
 
@@ -52,14 +58,18 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
     ``log_average`` fixes the exposure (e.g. that of a reference image, so several images compare fairly)."""
     log_average = log_average_luminance(hdr_rgb) if log_average is None else log_average
     preview = np.empty(hdr_rgb.shape[:2] + (3,), np.uint8)
-    for top in range(0, hdr_rgb.shape[0], STRIP_ROWS):
-        rgb = _finite_rgb(hdr_rgb[top:top + STRIP_ROWS])
+
+    def map_strip(rows: slice) -> None:
+        rgb = _finite_rgb(hdr_rgb[rows])
         luminance = rgb @ REC709_LUMINANCE
         scaled = luminance * np.float32(key / log_average)
         display = rgb * (scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12))[..., None]
         encoded = np.where(display <= 0.0031308, 12.92 * display,
                            1.055 * np.power(np.clip(display, 0.0031308, None), 1 / 2.4) - 0.055)
-        preview[top:top + STRIP_ROWS] = np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+        preview[rows] = np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+
+    with ThreadPoolExecutor(worker_threads()) as pool:
+        list(pool.map(map_strip, strips(hdr_rgb.shape[0], STRIP_ROWS)))
     return preview
 
 

@@ -13,9 +13,9 @@ import dataclasses
 import scipy.fft
 import torch
 
+from hdrcam.io.demosaic import CFA_CHANNELS
 from hdrcam.profiles import CameraSpec
 
-CFA_CHANNELS = {"R": 0, "G": 1, "B": 2}
 _VARIANCE_FLOOR_E2 = 1e-6  # keeps d sqrt(variance) finite at zero signal and zero read noise
 
 

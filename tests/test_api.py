@@ -16,7 +16,7 @@ import torch
 
 import hdrcam
 import hdrcam.api
-import hdrcam.evaluate.test_run as evaluation_run
+import hdrcam.evaluate.scoring as evaluation_run
 from hdrcam.cli import main
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
@@ -107,7 +107,7 @@ def test_evaluate_method_hdrcam_is_api_reconstruct(model, monkeypatch):
     smallest procedural test crop whose capture clips (at 64 px nothing clips and the network never runs)."""
     assert evaluation_run.reconstruct is hdrcam.api.reconstruct
     spy = Spy(hdrcam.api.reconstruct)
-    monkeypatch.setattr(evaluation_run, "reconstruct", spy)  # the name test_run actually calls
+    monkeypatch.setattr(evaluation_run, "reconstruct", spy)  # the name scoring actually calls
     rows, examples = evaluation_run.evaluate_models({"hdrcam": model}, SceneSource("procedural"), size_px=96, count=1)
     assert len(spy.calls) == 1
     call = spy.calls[0]

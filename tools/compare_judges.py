@@ -7,7 +7,7 @@ Rows: the network alone; the shipped judge (hdrcam.recon.consistency, what ``rec
 without its evidence step (upper bound only); the shipped judge after the optional streak fit; and any
 alternative judge given as a module file defining ``make_consistent`` with the shipped signature (e.g. an
 earlier version from git: ``git show COMMIT:hdrcam/recon/consistency.py > old.py``). Every row goes through
-``hdrcam.evaluate.test_run.evaluate_models`` (the paper's protocol: 512^2 crops, 1.5 % clipped, linear PSNR,
+``hdrcam.evaluate.scoring.evaluate_models`` (the paper's protocol: 512^2 crops, 1.5 % clipped, linear PSNR,
 peak 2^8) with the judge swapped in; columns: mean gain over the LDR capture, the worst scene's gain and how
 many scenes lose more than 0.3 dB, per data set.
 """
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import hdrcam.api as api
-import hdrcam.evaluate.test_run as test_run
+import hdrcam.evaluate.scoring as scoring
 import hdrcam.recon.consistency as consistency
 from hdrcam.data.scenes import SceneSource
 from hdrcam.io.atomic import write_text_atomic
@@ -48,17 +48,17 @@ def _module(path: Path):
 @contextlib.contextmanager
 def judged_by(make_consistent=None, streak_fit=False, evidence=True):
     """Swap the judge, the streak fit and the evidence step of hdrcam.api.reconstruct for one block."""
-    saved = api.make_consistent, test_run.reconstruct, consistency._evidence_shares
+    saved = api.make_consistent, scoring.reconstruct, consistency._evidence_shares
     try:
         if make_consistent is not None:
             api.make_consistent = make_consistent
         if streak_fit:
-            test_run.reconstruct = functools.partial(api.reconstruct, streak_fit=True)
+            scoring.reconstruct = functools.partial(api.reconstruct, streak_fit=True)
         if not evidence:
             consistency._evidence_shares = lambda *arguments: np.ones(3, np.float32)
         yield
     finally:
-        api.make_consistent, test_run.reconstruct, consistency._evidence_shares = saved
+        api.make_consistent, scoring.reconstruct, consistency._evidence_shares = saved
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         with judged_by(**options):
             for data, source in sources.items():
                 count = PROCEDURAL_COUNT if source.folder is None else len(source.folder)
-                rows, _ = test_run.evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count,
+                rows, _ = scoring.evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count,
                                                    examples=0)
                 results[name][data] = gains_over(rows, "hdrcam")
                 results["network alone"].setdefault(data, gains_over(rows, "hdrcam-network"))

@@ -23,7 +23,7 @@ import numpy as np
 
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.report import gains_over
-from hdrcam.evaluate.test_run import evaluate_models
+from hdrcam.evaluate.scoring import evaluate_models
 from hdrcam.io.png import write_png
 from hdrcam.preview import line_plot, side_by_side
 from hdrcam.train.checkpoint import load_model

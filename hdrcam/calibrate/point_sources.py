@@ -11,7 +11,7 @@ import dataclasses
 import cv2
 import numpy as np
 
-from hdrcam.hdr.demosaic import cfa_masks
+from hdrcam.io.demosaic import cfa_masks
 
 DETECTION_FRACTION = 0.05  # a source's peak must reach this fraction of the brightest source's peak
 ANNULUS_WIDTH_PX = 8

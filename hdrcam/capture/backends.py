@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-from hdrcam.capture.camera import Camera
-from hdrcam.capture.scene import Scene
-from hdrcam.capture.simulated import SimulatedCamera
-from hdrcam.profiles import Profile
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the command line reads CAMERA_KINDS without importing the simulation (torch)
+    from hdrcam.capture.camera import Camera
+    from hdrcam.capture.scene import Scene
+    from hdrcam.capture.simulated import SimulatedCamera
+    from hdrcam.profiles import Profile
 
 CAMERA_KINDS = ("sim", "sim-usb", "usb")
 
@@ -26,6 +29,8 @@ def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=
         return SonyA7Camera(), None
     if kind not in CAMERA_KINDS:
         raise ValueError(f"unknown camera {kind!r}; choose from {', '.join(CAMERA_KINDS)}")
+    from hdrcam.capture.simulated import SimulatedCamera
+
     simulated = SimulatedCamera(profile, scene, psf, seed=seed, **simulation)
     if kind == "sim":
         return simulated, simulated

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
 from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
@@ -26,7 +27,6 @@ from hdrcam.errors import HdrcamError, InputError, Interrupted, failure_message
 from hdrcam.io.atomic import TEMPORARY_SUFFIX
 from hdrcam.io.raw import read_raw
 from hdrcam.profiles import CameraSpec
-from hdrcam.progress import Progress
 
 CLIP_MARGIN = 0.01  # of the black-to-white range: samples above white - margin count as clipped
 
@@ -179,11 +179,10 @@ class BracketCapture:
             timestamp=timestamp.isoformat(), true_exposure_s=self.true_exposure_s() if self.true_exposure_s else None)
 
     def _fixed(self, bracket: Bracket, notches: list[ShutterNotch], dark: bool) -> None:
-        progress = Progress(len(notches), "darks" if dark else "bracket") if self.show_progress else None
-        for notch in notches:
-            self._shoot_one(bracket, notch, dark)
-            if progress:
-                progress.step(notch.label)
+        with tqdm(notches, desc="darks" if dark else "bracket", unit="frame", disable=not self.show_progress) as shots:
+            for notch in shots:
+                shots.set_postfix_str(notch.label, refresh=False)
+                self._shoot_one(bracket, notch, dark)
 
     def _auto(self, bracket: Bracket, plan: BracketPlan) -> None:
         step = round(plan.ev_step * NOTCHES_PER_EV)

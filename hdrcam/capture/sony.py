@@ -277,7 +277,6 @@ class SonyA7Camera:
     # -- capture ---------------------------------------------------------------------------------------------
     def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:
         self.cover_lens(dark)
-        session = self.session
         settings = self.settings()
         self._drain_stale_events()
         self._drain_pending_image()

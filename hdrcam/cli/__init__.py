@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import os
 import signal
 import sys
@@ -24,25 +25,31 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, one_line(f"{self.prog}: error: {message} (see '{self.prog} --help')") + "\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from hdrcam.cli import (calibrate_command, capture_command, demo_command, design_command, destreak_command,
-                            evaluate_command, export_command, fabricate_command, fuse_command, ingest_command,
-                            inspect_command, psf_command, reconstruct_command, simulate_command)
+# command -> the module under hdrcam.cli that registers it, in the order of ``hdrcam --help``. Only the module of
+# the command being run is imported (all of them for ``hdrcam --help``); none imports torch before its run().
+COMMAND_MODULES = {"psf": "psf_command", "fabricate": "fabricate_command", "capture": "capture_command",
+                   "ingest": "ingest_command", "inspect": "inspect_command", "fuse": "fuse_command",
+                   "calibrate": "calibrate_command", "design": "design_command", "finetune": "design_command", "evaluate": "evaluate_command",
+                   "simulate": "simulate_command", "reconstruct": "reconstruct_command",
+                   "destreak": "destreak_command", "export": "export_command", "demo": "demo_command"}
 
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of ``hdrcam``; with a known ``command``, registering only that command's module."""
     parser = OneLineParser(prog="hdrcam", description="Snapshot HDR imaging with a learned rank-1 diffractive "
                                                       "optical element (Sun et al., CVPR 2020).")
     parser.add_argument("--version", action="version", version=f"hdrcam {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="<command>", required=True)
-    for module in (psf_command, fabricate_command, capture_command, ingest_command, inspect_command, fuse_command,
-                   calibrate_command, design_command, evaluate_command, simulate_command, reconstruct_command,
-                   destreak_command, export_command, demo_command):
-        module.register(commands)
+    modules = [COMMAND_MODULES[command]] if command in COMMAND_MODULES else COMMAND_MODULES.values()
+    for module in dict.fromkeys(modules):
+        importlib.import_module(f"hdrcam.cli.{module}").register(commands)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(next((word for word in argv if not word.startswith("-")), None))
     arguments = parser.parse_args(argv)
     warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {one_line(str(message))}\n"
     name = f"hdrcam {arguments.command}"

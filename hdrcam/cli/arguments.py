@@ -1,13 +1,18 @@
-"""Argument types and options shared by several commands."""
+"""Argument types and options shared by several commands.
+
+Imported by every command's ``register``: nothing here may import torch (or anything heavy) at module level,
+so ``hdrcam --help`` and ``hdrcam COMMAND --help`` start in a fraction of a second."""
 
 from __future__ import annotations
 
 import argparse
 import math
-
-import torch
+from typing import TYPE_CHECKING
 
 from hdrcam.profiles import DEFAULT_PROFILE
+
+if TYPE_CHECKING:
+    import torch
 
 
 def positive_float(text: str) -> float:
@@ -84,6 +89,8 @@ def add_compute_options(parser: argparse.ArgumentParser) -> None:
 
 
 def compute_device(name: str) -> torch.device:
+    import torch
+
     from hdrcam.errors import InputError
 
     if name == "auto":
@@ -94,4 +101,6 @@ def compute_device(name: str) -> torch.device:
 
 
 def compute_dtype(name: str) -> torch.dtype:
+    import torch
+
     return {"float32": torch.float32, "float64": torch.float64}[name]

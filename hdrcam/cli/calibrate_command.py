@@ -8,11 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from hdrcam.calibrate.psf_calibration import calibrate_psf
-from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
 from hdrcam.cli.arguments import add_profile_option, positive_int
 from hdrcam.errors import InputError
-from hdrcam.hdr.bracket_input import bracket_paths
 from hdrcam.io.atomic import check_outputs
 from hdrcam.profiles import load_profile
 
@@ -43,6 +40,10 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.calibrate.psf_calibration import calibrate_psf
+    from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
+    from hdrcam.hdr.bracket_input import bracket_paths
+
     profile = load_profile(arguments.profile)
     size = arguments.size or profile.simulation.psf_size_px
     if size % 2 == 0:

@@ -6,12 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from hdrcam.capture.backends import CAMERA_KINDS, open_camera
-from hdrcam.capture.bracket import BracketCapture, BracketPlan
+from hdrcam.capture.backends import CAMERA_KINDS
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.capture.notches import nearest_shutter
-from hdrcam.capture.scene import load_scene
-from hdrcam.capture.simulated import simulation_psf
 from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
                                   thirds_of_ev)
 from hdrcam.errors import InputError, OutputExistsError
@@ -55,6 +52,11 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.capture.backends import open_camera
+    from hdrcam.capture.bracket import BracketCapture, BracketPlan
+    from hdrcam.capture.scene import load_scene
+    from hdrcam.capture.simulated import simulation_psf
+
     profile = load_profile(arguments.profile)
     folder: Path = arguments.out
     lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME

@@ -44,17 +44,14 @@ def _step(label: str, argv: list[str], timings: dict) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
-    import numpy as np
-
     from hdrcam.evaluate.metrics import all_metrics
     from hdrcam.io.exr import read_exr, write_exr
     from hdrcam.io.atomic import write_text_atomic
     from hdrcam.io.png import write_png
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import log_average_luminance, tonemap_rgb
-    from hdrcam.train.checkpoint import load_model
-
     from hdrcam.limits import check_image_size
+    from hdrcam.train.checkpoint import load_model
     from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL
 
     height, width = arguments.size

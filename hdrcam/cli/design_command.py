@@ -7,13 +7,15 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hdrcam.cli.arguments import compute_device, positive_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.recon.presets import PRESETS
-from hdrcam.train.checkpoint import read_checkpoint
-from hdrcam.train.config import TrainConfig
-from hdrcam.train.optical_capture import FIXED_PSFS, TRAINABLE_DOES
+from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
+
+if TYPE_CHECKING:
+    from hdrcam.train.config import TrainConfig
 
 
 def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> None:
@@ -73,6 +75,9 @@ def _config(arguments: argparse.Namespace, new_run: dict, given: dict) -> TrainC
     ``given`` on the command line; train() refuses a resume whose given fields differ from the run's."""
     given = dict(given, **{field: getattr(arguments, option) for option, field in _TRAINING_FIELDS.items()
                            if getattr(arguments, option) is not None})
+    from hdrcam.train.checkpoint import read_checkpoint
+    from hdrcam.train.config import TrainConfig
+
     checkpoint = arguments.out / "checkpoint.pt"
     if arguments.resume and checkpoint.is_file():
         config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
@@ -112,7 +117,7 @@ def run_design(arguments: argparse.Namespace) -> int:
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:
-    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
 
     checkpoint = arguments.checkpoint or SHIPPED_CHECKPOINT
     state = read_checkpoint(checkpoint)

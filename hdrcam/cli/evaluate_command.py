@@ -43,12 +43,13 @@ def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from hdrcam.data.scenes import SceneSource
     from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
-    from hdrcam.evaluate.test_run import evaluate_models
+    from hdrcam.evaluate.scoring import evaluate_models
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.limits import check_image_size
-    from hdrcam.progress import Progress
     from hdrcam.recon.tiling import FRAME_BYTES_PER_PIXEL, WINDOW_BYTES_PER_PIXEL
     from hdrcam.train.checkpoint import load_model
 
@@ -63,8 +64,9 @@ def run(arguments: argparse.Namespace) -> int:
     source = SceneSource(arguments.data)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()
-    rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
-                                     seed=arguments.seed, progress=Progress(count, "evaluate"))
+    with tqdm(total=count, desc="evaluate", unit="image") as progress:
+        rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
+                                         seed=arguments.seed, progress=progress)
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "

@@ -5,22 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-
-import numpy as np
-import torch
+from typing import TYPE_CHECKING
 
 from hdrcam import __version__
 from hdrcam.cli.arguments import add_profile_option, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs, write_text_atomic
-from hdrcam.io.exr import write_exr
-from hdrcam.io.png import write_png
-from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
-                                       quantise_heightmap)
-from hdrcam.optics.heightmap import FixedHeightMap, load_heightmap, save_heightmap
-from hdrcam.optics.materials import refractive_index
-from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 from hdrcam.profiles import load_profile
+
+if TYPE_CHECKING:
+    from hdrcam.optics.heightmap import FixedHeightMap
 
 
 MAX_LEVELS = 2 ** 16  # 16 binary masks; a level histogram of 2^40 bins alone would need 8 TB
@@ -41,6 +35,14 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hdrcam.io.png import write_png
+    from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
+                                           quantise_heightmap)
+    from hdrcam.optics.heightmap import load_heightmap, save_heightmap
+    from hdrcam.optics.materials import refractive_index
+
     profile = load_profile(arguments.profile)
     levels = arguments.levels or profile.doe.levels
     if levels < 2 or levels & (levels - 1) or levels > MAX_LEVELS:
@@ -87,6 +89,11 @@ def run(arguments: argparse.Namespace) -> int:
 
 
 def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, overwrite: bool) -> dict:
+    import torch
+
+    from hdrcam.io.exr import write_exr
+    from hdrcam.optics.psf import OpticalSetup, PsfSimulator
+
     setup = OpticalSetup.from_profile(profile)
     simulator = PsfSimulator(setup, source, dtype=torch.float32)
     with torch.no_grad():

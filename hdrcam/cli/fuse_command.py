@@ -6,15 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-import numpy as np
-
 from hdrcam.cli.arguments import add_profile_option
-from hdrcam.hdr.bracket_input import bracket_paths
-from hdrcam.hdr.fuse import fuse
 from hdrcam.io.atomic import check_outputs
-from hdrcam.io.exr import write_exr
-from hdrcam.io.png import write_png
-from hdrcam.preview import tonemap_rgb
+from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS
 from hdrcam.profiles import load_profile
 
 
@@ -27,11 +21,21 @@ def register(commands) -> None:
     parser.add_argument("--variance", action="store_true", help="add per-channel variance channels")
     parser.add_argument("--half", action="store_true", help="write half floats (refused above 65504)")
     parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--demosaic", choices=FLOAT_METHODS, default=DEFAULT_METHOD,
+                        help=f"demosaicing (default {DEFAULT_METHOD}: fast; menon2007: sharper edges, slower)")
     add_profile_option(parser)
     parser.set_defaults(run=run)
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hdrcam.hdr.bracket_input import bracket_paths
+    from hdrcam.hdr.fuse import fuse
+    from hdrcam.io.exr import write_exr
+    from hdrcam.io.png import write_png
+    from hdrcam.preview import tonemap_rgb
+
     profile = load_profile(arguments.profile)
     out: Path = arguments.out
     preview = out.with_suffix(".png")
@@ -40,7 +44,7 @@ def run(arguments: argparse.Namespace) -> int:
                   inputs=inputs + ([arguments.darks] if arguments.darks else []))
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
-                 with_variance=arguments.variance)
+                 with_variance=arguments.variance, demosaic_method=arguments.demosaic)
     channels = [image.rgb[..., 0], image.rgb[..., 1], image.rgb[..., 2], image.clipped.astype(np.float32)]
     names = ["R", "G", "B", "clipped"]
     if image.variance is not None:

@@ -8,19 +8,10 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-import torch
-
 from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
                                   positive_float, positive_int)
 from hdrcam.io.atomic import check_outputs, write_text_atomic
-from hdrcam.io.exr import write_exr
-from hdrcam.io.png import write_png
-from hdrcam.optics.heightmap import heightmap_for_doe, save_heightmap
-from hdrcam.optics.fraunhofer import FRAUNHOFER_SUBPIXELS
-from hdrcam.optics.psf import OpticalSetup, PsfSimulator
-from hdrcam.preview import heightmap_rgb, log_psf_rgb, side_by_side
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
 
 OUTPUT_NAMES = ("psf.exr", "heightmap.exr", "psf.png", "psf.json")
@@ -48,6 +39,16 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from hdrcam.io.exr import write_exr
+    from hdrcam.io.png import write_png
+    from hdrcam.optics.fraunhofer import FRAUNHOFER_SUBPIXELS
+    from hdrcam.optics.heightmap import heightmap_for_doe, save_heightmap
+    from hdrcam.optics.psf import OpticalSetup, PsfSimulator
+    from hdrcam.preview import heightmap_rgb, log_psf_rgb, side_by_side
+
     profile = load_profile(arguments.profile)
     if arguments.propagation:
         profile = _with_propagation(profile, arguments.propagation)

@@ -10,13 +10,11 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-import torch
-
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_writable, same_file_key
-from hdrcam.recon.tiling import DEFAULT_CORE_PX, DEFAULT_HALO_PX
+from hdrcam.io.demosaic import DEFAULT_METHOD, METHODS
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 
 def register(commands) -> None:
@@ -41,6 +39,9 @@ def register(commands) -> None:
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--precision", default="float32", choices=("float32", "float16", "bfloat16"),
                         help="network precision; half precisions on CUDA only (they are slow on CPUs)")
+    parser.add_argument("--demosaic", choices=METHODS, default=DEFAULT_METHOD,
+                        help=f"demosaicing of RAW inputs (default {DEFAULT_METHOD}: fast; edge-aware, menon2007: "
+                             "sharper edges, slower)")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -52,6 +53,11 @@ def output_paths(out: Path, source: Path) -> tuple[Path, Path, Path]:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from tqdm import tqdm
+
     from hdrcam.io.exr import write_exr
     from hdrcam.io.ldr_frame import read_ldr_frame
     from hdrcam.io.png import write_png
@@ -59,7 +65,6 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.progress import Progress
     from hdrcam.api import reconstruct
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
@@ -85,10 +90,10 @@ def run(arguments: argparse.Namespace) -> int:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
-    frames = [read_ldr_frame(source) for source in arguments.inputs]  # every input checked before any work
+    frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
-    progress = Progress(sum(region.windows for plan in plans for region in plan), "reconstruct")
+    progress = tqdm(total=sum(region.windows for plan in plans for region in plan), desc="reconstruct", unit="window")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
@@ -118,4 +123,5 @@ def run(arguments: argparse.Namespace) -> int:
                           "streak_fit": result.streak_fit, "consistency": result.consistency.summary(),
                           "fallback_fraction": round(result.fallback_fraction, 4),
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
+    progress.close()
     return 0

@@ -12,11 +12,10 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from hdrcam.cli.arguments import positive_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs
+from hdrcam.train.choices import FIXED_PSFS
 
 
 def register(commands) -> None:
@@ -36,6 +35,8 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    import numpy as np
+
     from hdrcam.data.hdr_folder import read_hdr_image
     from hdrcam.data.night_scene import night_scene
     from hdrcam.data.saturation import clipped_fraction, scale_to_clipped_fraction
@@ -43,7 +44,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.profiles import load_profile
     from hdrcam.train.checkpoint import load_model
     from hdrcam.limits import check_image_size
-    from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL, FIXED_PSFS, capture_scene, fixed_psf
+    from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL, capture_scene, fixed_psf
 
     if not 0.0 < arguments.clipped_fraction < 1.0:
         raise InputError("--clipped-fraction must lie between 0 and 1")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hdrcam.evaluate.test_run import Example, ScoredImage
+from hdrcam.evaluate.scoring import Example, ScoredImage
 from hdrcam.io.atomic import write_text_atomic
 from hdrcam.io.png import write_png
 from hdrcam.preview import log_average_luminance, tonemap_rgb

@@ -17,8 +17,8 @@ import numpy as np
 from hdrcam.colorimetry import camera_to_srgb_matrix
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
-from hdrcam.hdr.demosaic import demosaic_bilinear
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
+from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.raw import RawFrame
 from hdrcam.io.raw_clipping import clipped_samples
 from hdrcam.profiles import CameraSpec
@@ -63,14 +63,21 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
 
 
 def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,
-         with_variance: bool = False) -> FusedImage:
+         with_variance: bool = False, demosaic_method: str = DEFAULT_METHOD) -> FusedImage:
+    """Merge the RAW frames of ``sources`` (bracket.json, a folder or files) into linear HDR.
+
+    ``camera``: the profile's sensor (full well, read noise: the merge's noise model). ``darks``: dark frames
+    (a bracket.json or folder) replacing the black level. ``camera_rgb``: keep camera RGB instead of linear
+    sRGB. ``with_variance``: also the per-channel variance. ``demosaic_method``: one of
+    ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per second at ISO 100.
+    """
     frames = read_bracket(sources)
     if all(clipped_samples(frame.bayer_dn, frame.clip_level_tile_dn).all() for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks))
     meta = frames[0].metadata
-    rgb = demosaic_bilinear(merge.rate, meta.cfa_pattern)
-    variance = demosaic_bilinear(merge.variance.clip(max=1e30), meta.cfa_pattern) if with_variance else None
+    rgb = demosaic(merge.rate, meta.cfa_pattern, demosaic_method)
+    variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, demosaic_method) if with_variance else None
     clipped = cv2.dilate(merge.clipped_everywhere.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     colour = "camera RGB"
     if not camera_rgb and not meta.has_colour_matrix:

@@ -1,1 +1,1 @@
-"""File input and output: EXR, PNG previews, atomic writes."""
+"""File input and output: RAW, EXR, PNG previews, demosaicing of Bayer data, atomic writes."""

@@ -22,6 +22,7 @@ import OpenEXR
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.limits import check_image_size
+from hdrcam.parallel import worker_threads
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
 DECODED_BYTES_PER_SAMPLE = 12  # the decoded float32 plane, its full-resolution copy and one working copy
@@ -164,6 +165,8 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
         if isinstance(value, str):  # a file name that is not UTF-8 is stored with its odd bytes escaped
             value = value.encode("utf-8", "backslashreplace").decode("utf-8")
         header[key] = value
+    if OpenEXR.global_thread_count() < worker_threads():
+        OpenEXR.set_global_thread_count(worker_threads())  # ZIP compression of scanline blocks on every core
     encoded = io.BytesIO()  # in memory, then written by Python: any file name works, a full disk names its cause
     OpenEXR.File(header, channels).write(encoded)
     return write_bytes_atomic(Path(path), encoded.getvalue(), overwrite=overwrite)

@@ -1,9 +1,10 @@
 """Captured LDR frames for reconstruction, as H x W x 3 float32 camera RGB relative to white (0 .. 1).
 
-- RAW (any file LibRaw opens): black level subtracted per CFA position, divided by (clip - black) with
-  the clip level measured from the data (the lowest of the CFA positions': a pile-up below the metadata
-  white level maps to 1, so those pixels count as clipped), bilinear demosaic, clipped to [0, 1]. No white
-  balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
+- RAW (any file LibRaw opens): black level subtracted per CFA position and clipped to [0, clip - black] in
+  digital numbers, with the clip level measured from the data (the lowest of the CFA positions': a pile-up
+  below the metadata white level maps to 1, so those pixels count as clipped), demosaiced (hdrcam.io.demosaic;
+  OpenCV's bilinear by default, on the integers when the levels are whole numbers), divided by (clip - black).
+  No white balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
 - EXR: linear RGB taken as is (1.0 = white).
 - 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
@@ -17,7 +18,7 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
-from hdrcam.hdr.demosaic import demosaic_bilinear
+from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import read_exr
 from hdrcam.io.raw import read_raw
 from hdrcam.io.raw_clipping import tiled
@@ -27,7 +28,9 @@ LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is no
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
 
-def read_ldr_frame(path: Path) -> np.ndarray:
+def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
+    """H x W x 3 float32 camera RGB relative to white (0 .. 1) of a RAW, EXR or 16-bit TIFF/PNG frame;
+    ``demosaic_method`` (RAW only): one of ``hdrcam.io.demosaic.METHODS``."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} does not exist")
@@ -43,7 +46,7 @@ def read_ldr_frame(path: Path) -> np.ndarray:
                              "an EXR or a RAW file")
         rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
     else:
-        rgb = raw_relative_rgb(path)
+        rgb = raw_relative_rgb(path, demosaic_method)
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     if float(rgb.min()) < -NEGATIVE_LDR_TOLERANCE:
@@ -55,12 +58,13 @@ def read_ldr_frame(path: Path) -> np.ndarray:
     return np.clip(rgb, 0.0, 1.0).astype(np.float32)
 
 
-def raw_relative_rgb(path: Path) -> np.ndarray:
+def raw_relative_rgb(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
     """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced."""
     frame = read_raw(path)
     height, width = frame.bayer_dn.shape
     black_tile = frame.metadata.black_level_tile()
-    black = tiled(black_tile, height, width)
     scale_dn = float((frame.clip_level_tile_dn - black_tile).min())
-    relative = (frame.bayer_dn.astype(np.float32) - black) / scale_dn
-    return demosaic_bilinear(np.clip(relative, 0.0, 1.0), frame.metadata.cfa_pattern)
+    signal_dn = np.clip(frame.bayer_dn.astype(np.float32) - tiled(black_tile, height, width), 0.0, scale_dn)
+    if np.all(black_tile == np.round(black_tile)) and scale_dn == round(scale_dn) and scale_dn < 65536:
+        signal_dn = signal_dn.astype(np.uint16)  # exact: OpenCV's integer demosaicing
+    return demosaic(signal_dn, frame.metadata.cfa_pattern, demosaic_method) / np.float32(scale_dn)

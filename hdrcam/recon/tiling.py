@@ -29,14 +29,13 @@ import torch
 
 from hdrcam.limits import check_memory
 from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 CLIP_LEVEL = 0.99  # a pixel whose brightest channel reaches this (relative to white) is clipped
-DEFAULT_CORE_PX = 512
 # memory per pixel, fast preset: a window through the network (measured: 118 bytes at 1088^2, x 4), and the
 # frame-wide arrays of the whole reconstruction (README: 24 MP in 3.1 GB, ~130 bytes, x 2)
 WINDOW_BYTES_PER_PIXEL = 512
 FRAME_BYTES_PER_PIXEL = 256
-DEFAULT_HALO_PX = 32  # measured: 16, 32 and 64 px give the same PSNR within 0.05 dB (1 MP, clustered)
 MULTIPLE_PX = 16  # the U-Net pools four times: a window's sides are multiples of this
 
 
@@ -176,7 +175,7 @@ def _run_region(network, ldr: np.ndarray, region: Region, halo_px: int, blend: i
             total[top:top + window_height, left:left + window_width] += output * weight
             weights[top:top + window_height, left:left + window_width] += weight
             if progress:
-                progress.step()
+                progress.update()
     core = (slice(halo_px, halo_px + region.height), slice(halo_px, halo_px + region.width))
     return total[core] / weights[core]
 

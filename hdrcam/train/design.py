@@ -25,6 +25,7 @@ import numpy as np
 import torch
 import torch.distributed as dist
 from torch import nn
+from tqdm import tqdm
 
 from hdrcam.data.scenes import SceneSource
 from hdrcam.errors import InputError
@@ -36,7 +37,6 @@ from hdrcam.optics.energy import energy_regulariser
 from hdrcam.optics.heightmap import save_heightmap
 from hdrcam.preview import line_plot, log_psf_rgb, radial_profile_plot, side_by_side
 from hdrcam.profiles import load_profile
-from hdrcam.progress import Progress
 from hdrcam.recon.losses import reconstruction_loss
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
@@ -144,7 +144,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         # into it at the same time fails here); the run's later files are its own
         write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=resume)
         log_lines = _log_lines(out / "log.jsonl", start)
-    progress = Progress(min(config.steps, start + (stop_after or config.steps)) - start, f"design {out.name}") if rank == 0 and not quiet else None
+    progress = tqdm(total=min(config.steps, start + (stop_after or config.steps)) - start, desc=f"design {out.name}",
+                    unit="step") if rank == 0 and not quiet else None
     margin, last = model.capture.margin_px, {}
     end = config.steps if stop_after is None else min(config.steps, start + stop_after)
     model.train()
@@ -173,9 +174,12 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         if rank == 0:
             log_lines.append(json.dumps(last))
             if progress:
-                progress.step(f"loss {last['total']:.4f}")
+                progress.set_postfix_str(f"loss {last['total']:.4f}", refresh=False)
+                progress.update()
             if (step + 1) % config.checkpoint_every == 0 and step + 1 < end:
                 _save_run(out, model, config, optimizer, rng, noise, step + 1, log_lines)
+    if progress:
+        progress.close()
     if rank == 0:
         _save_run(out, model, config, optimizer, rng, noise, end, log_lines)
         if end == config.steps:

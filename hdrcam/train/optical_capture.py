@@ -27,9 +27,8 @@ from hdrcam.optics.psf import OpticalSetup, PsfResult, PsfSimulator
 from hdrcam.optics.psf_file import load_psf
 from hdrcam.profiles import Profile
 from hdrcam.sensor import Sensor, fft_convolve
+from hdrcam.train.choices import TRAINABLE_DOES
 
-TRAINABLE_DOES = ("rank1", "freeform")
-FIXED_PSFS = ("dirac", "star8", "dual-peak", "windshield")
 WINDSHIELD_REFERENCE_DEG = 5.0  # the angle of the PSF stored with a windshield model
 
 

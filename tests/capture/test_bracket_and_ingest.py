@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from hdrcam.capture.bracket import BracketCapture, BracketPlan
-from hdrcam.capture.emulator import Faults
 from hdrcam.capture.ingest import ingest_folder
 from hdrcam.capture.manifest import load_bracket, sha256_of
 from hdrcam.capture.notches import nearest_shutter

@@ -7,7 +7,7 @@ import pytest
 
 from hdrcam.evaluate.metrics import (PSNR_CAP_DB, PU21_PEAK, mu_law, psnr_linear, psnr_mu, pu21_encode,
                                      pu21_psnr)
-from hdrcam.evaluate.test_run import hdrcnn_blend
+from hdrcam.evaluate.scoring import hdrcnn_blend
 
 
 def test_linear_psnr_of_a_unit_error_is_20_log10_256():
@@ -49,7 +49,7 @@ def test_hdrcnn_blend_ramps_from_095_to_1():
 
 def test_gains_over_the_reference_are_per_image_differences_in_scoring_order():
     from hdrcam.evaluate.report import gains_over
-    from hdrcam.evaluate.test_run import ScoredImage
+    from hdrcam.evaluate.scoring import ScoredImage
 
     def row(image, method, psnr):
         return ScoredImage(image, method, {"psnr_linear": psnr, "pu21_psnr": 0.0, "psnr_mu": 0.0}, 0.015)

@@ -14,7 +14,7 @@ import pytest
 
 from hdrcam.cli import main
 from hdrcam.io.exr import write_exr
-from tests.faults.helpers import assert_failed_with_one_line, run, snapshot, temporaries
+from tests.faults.helpers import assert_failed_with_one_line, run, temporaries
 
 
 def copy_bracket(source: Path, target: Path) -> Path:

@@ -83,5 +83,6 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
         if index < examples:
             shown.append(Example(name, truth, outputs))
         if progress:
-            progress.step(name)
+            progress.set_postfix_str(name, refresh=False)
+            progress.update()
     return rows, shown

@@ -1,0 +1,187 @@
+"""The stages of the user story as Python functions: capture a bracket, fuse it, calibrate the PSF, design or
+fine-tune the network, evaluate checkpoints (reconstruction is :func:`hdrcam.api.reconstruct`). ``hdrcam`` re-exports
+them; the command line calls the same functions and only parses arguments and writes files.
+
+    import hdrcam
+    bracket, _ = hdrcam.capture_bracket("bracket", camera="sim", profile="simulated", scene="night")
+    image = hdrcam.fuse(["bracket"], profile="simulated")     # image.rgb: H x W x 3 relative radiance
+    calibration = hdrcam.calibrate_psf(["pinholes"], profile="simulated", darks="pinholes/darks")
+
+Units: SI (seconds, metres); images are float32 H x W x 3 numpy arrays in linear light. Nothing heavy is
+imported before a function runs (torch only for design, finetune and evaluate).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from hdrcam.profiles import DEFAULT_PROFILE
+
+if TYPE_CHECKING:
+    from hdrcam.calibrate.psf_calibration import PsfCalibration
+    from hdrcam.capture.manifest import Bracket
+    from hdrcam.evaluate.scoring import Example, ScoredImage
+    from hdrcam.hdr.fuse import FusedImage
+
+
+def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFAULT_PROFILE,
+                    shortest_s: float = 1 / 4000, stops: int | None = None, ev_step: float | None = None,
+                    iso: float = 100.0, auto: bool = False, roi: tuple[int, int, int, int] | None = None,
+                    darks: bool = False, scene: str = "point", psf: str = "doe", size_px: tuple[int, int] | None = None,
+                    seed: int = 0, hot_pixel_fraction: float = 2e-5, exposure_error: float = 0.02,
+                    show_progress: bool = False) -> tuple["Bracket", "Bracket | None"]:
+    """Shoot an exposure bracket of RAW frames into the new folder ``out`` (frames + bracket.json).
+
+    ``camera``: ``sim`` (simulated A7), ``sim-usb`` (the USB code path against an emulated A7) or ``usb`` (a
+    Sony A7 in PC-remote mode). Exposures: ``stops`` frames ``ev_step`` EV apart from ``shortest_s`` seconds
+    (defaults: the profile's calibration plan), at ``iso``; ``auto`` takes only the exposures the region
+    ``roi`` (x, y, width, height in pixels) needs. ``darks``: dark frames at the same exposures in out/darks.
+    Simulated cameras: ``scene`` (point[:POWER], pinholes[:POWER[:SPACING]], night, flat[:LEVEL] or an EXR in
+    relative radiance), ``psf`` (doe, dirac or an EXR), ``size_px`` (width, height; default: the profile's
+    sensor), ``seed``, ``hot_pixel_fraction`` (of all pixels) and ``exposure_error`` (largest relative error of
+    a true shutter time). Returns the bracket and the dark bracket (or None).
+    """
+    from hdrcam.capture.backends import open_camera
+    from hdrcam.capture.bracket import BracketCapture, BracketPlan
+    from hdrcam.capture.notches import nearest_shutter
+    from hdrcam.capture.scene import load_scene
+    from hdrcam.capture.simulated import simulation_psf
+    from hdrcam.profiles import load_profile
+
+    chosen = load_profile(profile)
+    folder = Path(out)
+    plan = BracketPlan(shortest_s=shortest_s, stops=stops or chosen.calibration.stops,
+                       ev_step=ev_step or chosen.calibration.ev_step, iso=iso, auto=auto, roi=roi,
+                       target_snr=chosen.calibration.target_snr, snr_percentile=chosen.calibration.snr_percentile)
+    rendered = kernel = None
+    if camera != "usb":
+        width, height = size_px or (chosen.camera.width_px, chosen.camera.height_px)
+        rendered = load_scene(scene, height, width, seed=seed)
+        kernel = simulation_psf(chosen, psf)
+    device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
+                                    hot_pixel_fraction=hot_pixel_fraction, exposure_error=exposure_error)
+    options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed}
+    truth = simulated.true_exposure_s if simulated else None
+    dark_bracket = None
+    with device:
+        bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name, options=options,
+                                 true_exposure_s=truth, show_progress=show_progress).shoot(plan)
+        if darks:
+            notches = [nearest_shutter(frame.exposure_s) for frame in bracket.frames]
+            dark_bracket = BracketCapture(device, chosen.camera, folder / "darks", backend=camera,
+                                          profile=chosen.name, options=options, true_exposure_s=truth,
+                                          show_progress=show_progress).shoot(plan, dark_notches=notches)
+    return bracket, dark_bracket
+
+
+def fuse(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
+         camera_rgb: bool = False, with_variance: bool = False, demosaic: str = "bilinear") -> "FusedImage":
+    """Merge a RAW bracket into linear HDR (nothing is written).
+
+    ``bracket``: a bracket.json, a folder of RAW files, or the RAW files. ``profile``: the capture profile
+    whose sensor noise (full well, read noise) weights the merge. ``darks``: dark frames (bracket.json or
+    folder) to subtract instead of the black level. ``camera_rgb``: keep camera RGB (default: linear sRGB,
+    D65). ``demosaic``: ``bilinear`` (fast) or ``menon2007`` (sharper, slower). Returns a FusedImage: ``rgb``
+    (H x W x 3 float32, relative radiance = full wells per second at ISO 100), ``clipped`` (H x W bool: a
+    lower bound), ``variance`` (with ``with_variance``) and the merge's exposure estimates.
+    """
+    from hdrcam.hdr.fuse import fuse as fuse_bracket
+    from hdrcam.profiles import load_profile
+
+    return fuse_bracket([Path(source) for source in bracket], load_profile(profile).camera,
+                        darks=Path(darks) if darks else None, camera_rgb=camera_rgb, with_variance=with_variance,
+                        demosaic_method=demosaic)
+
+
+def calibrate_psf(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
+                  size_px: int | None = None, energy_fraction: float | None = None) -> "PsfCalibration":
+    """Measure the PSF from a point-source (best: pinhole-array) bracket, on the Bayer data.
+
+    ``size_px``: the odd PSF size in pixels (default: the profile's); ``energy_fraction``: crop to the smallest
+    size holding this fraction of every channel's energy. ``darks`` locate hot pixels. Returns the
+    calibration: ``psf`` (3 x S x S float, camera RGB, each channel summing to 1, optical axis at S // 2),
+    per-source fits, energy in the crop and the fit's reduced chi^2.
+    """
+    from hdrcam.calibrate.psf_calibration import calibrate_psf as calibrate
+    from hdrcam.profiles import load_profile
+
+    chosen = load_profile(profile)
+    return calibrate([Path(source) for source in bracket], chosen.camera, darks=Path(darks) if darks else None,
+                     size_px=size_px or chosen.simulation.psf_size_px, energy_fraction=energy_fraction)
+
+
+def design(out: str | Path, *, preset: str = "fast", profile: str = "simulated", doe: str | None = "rank1",
+           psf: str | None = None, data: str = "procedural", steps: int = 1000, batch: int = 4, crop_px: int = 128,
+           learning_rate: float | None = None, seed: int = 0, checkpoint_every: int = 100, resume: bool = False,
+           vgg_weights: str | Path | None = None, device: str = "auto", quiet: bool = False) -> dict:
+    """Train the reconstruction network and (with ``doe`` rank1 or freeform) the DOE end to end.
+
+    ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
+    PSF. ``data``: procedural, a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` Adam steps of
+    ``batch`` crops of ``crop_px`` pixels (a multiple of 16); ``learning_rate`` of the network (default 1e-3,
+    polynomial decay). Writes the run folder ``out`` (config, log, checkpoint.pt every ``checkpoint_every``
+    steps, and model.pt at the end); ``resume`` continues it. Returns the last logged step (losses, seconds).
+    """
+    from hdrcam.train.config import TrainConfig
+
+    config = TrainConfig(preset=preset, data=data, profile=profile, doe=None if psf else doe, psf=psf, steps=steps,
+                         batch=batch, crop_px=crop_px, seed=seed, checkpoint_every=checkpoint_every)
+    if learning_rate:
+        config.learning_rate = learning_rate
+    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet)
+
+
+def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None = None, data: str = "procedural",
+             steps: int = 200, batch: int = 4, crop_px: int = 128, learning_rate: float = 2e-4, seed: int = 0,
+             checkpoint_every: int = 100, resume: bool = False, vgg_weights: str | Path | None = None,
+             device: str = "auto", quiet: bool = False) -> dict:
+    """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
+    calibration/NAME/psf.exr). Options as :func:`design`; the learning rate starts gentler (2e-4). Writes the
+    run folder ``out``; returns the last logged step."""
+    from hdrcam.errors import InputError
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
+    from hdrcam.train.config import TrainConfig
+
+    if not Path(psf).is_file():
+        raise InputError(f"--psf {psf} does not exist")
+    start = Path(checkpoint) if checkpoint else SHIPPED_CHECKPOINT
+    state = read_checkpoint(start)
+    config = TrainConfig(preset=state["preset"], data=data, profile=state["profile"], doe=None, psf=str(psf),
+                         steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
+                         checkpoint_every=checkpoint_every, init_checkpoint=str(start))
+    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet)
+
+
+def _train(config, out: str | Path, *, resume: bool, vgg_weights, device: str, quiet: bool) -> dict:
+    import torch
+
+    from hdrcam.train.design import train
+
+    return train(config, Path(out), resume=resume, vgg_weights=Path(vgg_weights) if vgg_weights else None,
+                 device=None if device == "auto" else torch.device(device), quiet=quiet)
+
+
+def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None, *, data: str = "procedural",
+             size_px: int = 512, count: int = 16, seed: int = 0, psf: str | Path | None = None,
+             vgg_weights: str | Path | None = None,
+             progress=None) -> tuple[list["ScoredImage"], list["Example"]]:
+    """Score checkpoints (label -> checkpoint path; None = the shipped one) on a fixed test set.
+
+    ``data``: procedural (``count`` seeded night scenes) or a folder of EXR/.hdr photographs; each test image is
+    a ``size_px`` crop scaled so 1.5 % of its pixels exceed 1, captured through each checkpoint's PSF (or
+    ``psf``) with noise seed ``seed``, reconstructed by :func:`hdrcam.reconstruct` and scored: linear PSNR
+    (peak 2^8, dB), PU21 PSNR and PSNR-mu. ``progress``: a tqdm-like object (``update()``) per image. Returns
+    the scored rows (also ``ldr`` and ``hdrcnn-blend``) and three examples (images).
+    """
+    from hdrcam.data.scenes import SceneSource
+    from hdrcam.evaluate.scoring import evaluate_models
+    from hdrcam.optics.psf_file import load_psf
+    from hdrcam.train.checkpoint import load_model
+
+    models = {label: load_model(Path(path) if path else None, vgg_weights=Path(vgg_weights) if vgg_weights else None)
+              for label, path in (checkpoints or {"hdrcam": None}).items()}
+    source = SceneSource(data)
+    count = count if source.folder is None else len(source.folder)
+    return evaluate_models(models, source, size_px=size_px, count=count, psf=load_psf(Path(psf)) if psf else None,
+                           seed=seed, progress=progress)

@@ -1,0 +1,210 @@
+"""The reconstruction network on this machine: its roofline, and speed against accuracy per preset, precision
+and size.
+
+1. Roofline of the default network (the shipped ``fast`` checkpoint) at 512^2, all measured in this one run:
+   the fp32 matmul peak (2048^2 matmul, best of 5), the copy bandwidth (torch copy of 256 MiB, best of 5,
+   bytes read + written), the forward's FLOPs (2 x multiply-adds of every convolution, hdrcam.recon.flops) and
+   its memory traffic (every module's inputs, outputs and parameters read or written once: a lower bound).
+   Bound = max(FLOPs / peak, traffic / bandwidth); the forward is timed in NCHW and channels_last on
+   --threads torch threads (default: the cores; peak and bandwidth on the same threads).
+2. Speed-accuracy table: each preset x precision x size in a fresh process (peak RSS of that process minus
+   its RSS before the first forward, Linux's resettable peak); time = median of --repeats forwards after a warm-up (1 for paper);
+   PSNR (dB, peak 2^8 as the paper's linear PSNR) of the output against the same network in fp32, on a
+   procedural night scene captured at 1.5 % clipped pixels. ``fast`` is the shipped checkpoint; ``lite`` and
+   ``paper`` have seeded random weights (paper with random VGG-19 features). bf16 and fp16 run only at 128^2:
+   on this CPU they are many times slower than fp32 (REFERENCE.md sec. 7).
+On a machine shared with other jobs, OpenMP threads that outnumber the free cores wait on each other (one
+forward of ``fast`` at 128^2 took 2.5 s on 2 threads and 0.21 s on 1 with 4 other processes running):
+the output records the load average; measure with --threads 1 there.
+Usage: python tools/bench.py [--repeats 3] [--threads N] [--out tools/results/bench-cpu.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+CONFIGS = [("fast", "float32", 256), ("fast", "float32", 512), ("fast", "float32", 1024),
+           ("lite", "float32", 256), ("lite", "float32", 512), ("paper", "float32", 256),
+           ("paper", "float32", 512), ("fast", "bfloat16", 128), ("fast", "float16", 128)]
+PEAK_RADIANCE = 2.0 ** 8
+
+
+def cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def best_seconds(function, repeats: int = 5) -> float:
+    function()
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - started)
+    return min(times)
+
+
+def matmul_peak_flops(size: int = 2048) -> float:
+    a, b = torch.rand(size, size), torch.rand(size, size)
+    return 2 * size ** 3 / best_seconds(lambda: a @ b)
+
+
+def copy_bandwidth_bytes_per_s(mebibytes: int = 256) -> float:
+    source = torch.rand(mebibytes * 2 ** 20 // 4)
+    target = torch.empty_like(source)
+    return 2 * source.numel() * 4 / best_seconds(lambda: target.copy_(source))
+
+
+def traffic_bytes(network: torch.nn.Module, image: torch.Tensor) -> float:
+    """Bytes every leaf module reads (inputs, parameters) and writes (outputs) once in a forward pass."""
+    total = [0]
+
+    def tensors(value):
+        if isinstance(value, torch.Tensor):
+            return [value]
+        if isinstance(value, (tuple, list)):
+            return [t for item in value for t in tensors(item)]
+        return []
+
+    def count(module, inputs, output):
+        total[0] += sum(t.numel() * t.element_size() for t in tensors(inputs) + tensors(output))
+        total[0] += sum(p.numel() * p.element_size() for p in module.parameters(recurse=False))
+
+    leaves = [m for m in network.modules() if not list(m.children())]
+    handles = [m.register_forward_hook(count) for m in leaves]
+    try:
+        with torch.no_grad():
+            network(image)
+    finally:
+        for handle in handles:
+            handle.remove()
+    return float(total[0])
+
+
+def build(name: str) -> torch.nn.Module:
+    from hdrcam.recon.network import ReconstructionNet
+    from hdrcam.recon.presets import preset
+    from hdrcam.recon.vgg import load_vgg19
+    from hdrcam.train.checkpoint import load_model
+
+    if name == "fast":
+        return load_model().network.eval()
+    torch.manual_seed(0)
+    chosen = preset(name)
+    return ReconstructionNet(chosen, load_vgg19(random_features=True) if chosen.vgg_features else None).eval()
+
+
+def test_frame(size_px: int) -> torch.Tensor:
+    """A procedural night scene scaled so 1.5 % of its pixels clip, clipped to [0, 1]: (1, 3, S, S)."""
+    from hdrcam.data.night_scene import night_scene
+    from hdrcam.data.saturation import scale_to_clipped_fraction
+
+    scene = scale_to_clipped_fraction(night_scene(size_px, size_px, seed=1), 0.015)
+    return torch.from_numpy(np.clip(scene, 0.0, 1.0).astype(np.float32)).permute(2, 0, 1)[None].contiguous()
+
+
+def _status_mb(field: str) -> float:
+    """VmRSS or VmHWM (peak RSS) of this process in MB, from /proc/self/status."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError(f"no {field} in /proc/self/status")
+
+
+def worker(name: str, precision: str, size_px: int, repeats: int, threads: int) -> dict:
+    """One configuration in this (fresh) process."""
+    torch.set_num_threads(threads)
+    network, frame = build(name), test_frame(size_px)
+    dtype = getattr(torch, precision)
+    reference_network = copy.deepcopy(network) if dtype != torch.float32 else network
+    network, image = network.to(dtype), frame.to(dtype)
+    Path("/proc/self/clear_refs").write_text("5")  # resets the peak RSS to the current RSS (Linux)
+    before = _status_mb("VmRSS")
+    times = []
+    with torch.no_grad():
+        for _ in range(1 + (1 if name == "paper" or dtype != torch.float32 else repeats)):
+            started = time.perf_counter()
+            output = network(image).hdr.float()
+            times.append(time.perf_counter() - started)
+        peak_mb = _status_mb("VmHWM") - before
+        reference = reference_network(frame).hdr if dtype != torch.float32 else output
+    error = float(torch.mean((output - reference) ** 2))
+    psnr = float("inf") if error == 0 else 10 * np.log10(PEAK_RADIANCE ** 2 / error)
+    return {"seconds": statistics.median(times[1:]), "memory_mb": peak_mb, "psnr_db": psnr}
+
+
+def roofline(repeats: int, threads: int) -> list[str]:
+    from hdrcam.recon.flops import forward_gflops
+
+    torch.set_num_threads(threads)
+    peak, bandwidth = matmul_peak_flops(), copy_bandwidth_bytes_per_s()
+    network, image = build("fast"), test_frame(512)
+    flops = forward_gflops(network, image) * 1e9
+    traffic = traffic_bytes(network, image)
+    bound = max(flops / peak, traffic / bandwidth)
+    lines = [f"Machine: {platform.processor() or platform.machine()}, {cores()} cores, torch {torch.__version__} "
+             f"({torch.get_num_threads()} threads); fp32 matmul peak {peak / 1e9:.0f} GFLOP/s, copy bandwidth "
+             f"{bandwidth / 1e9:.1f} GB/s (measured in this run).", "",
+             f"Default network (`fast`, the shipped checkpoint) at 512^2: {flops / 1e9:.1f} GFLOP -> "
+             f"{flops / peak:.3f} s at the matmul peak; traffic >= {traffic / 1e9:.2f} GB -> "
+             f"{traffic / bandwidth:.3f} s at the copy bandwidth; roofline bound {bound:.3f} s.", "",
+             "| layout | forward @512^2 (s) | x roofline bound | GFLOP/s |", "|---|---|---|---|"]
+    for layout in ("NCHW", "channels_last"):
+        model, x = network, image
+        if layout == "channels_last":
+            model = network.to(memory_format=torch.channels_last)
+            x = image.contiguous(memory_format=torch.channels_last)
+        with torch.no_grad():
+            times = [best_seconds(lambda: model(x), repeats=1) for _ in range(repeats)]
+        seconds = statistics.median(times)
+        lines.append(f"| {layout} | {seconds:.3f} | {seconds / bound:.2f} | {flops / seconds / 1e9:.0f} |")
+        print(lines[-1], flush=True)
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=cores(), help="torch threads (default: the cores)")
+    parser.add_argument("--out", type=Path, default=Path("tools/results/bench-cpu.md"))
+    parser.add_argument("--worker", nargs=3, metavar=("PRESET", "PRECISION", "SIZE"), help=argparse.SUPPRESS)
+    arguments = parser.parse_args()
+    if arguments.worker:
+        name, precision, size = arguments.worker
+        print(json.dumps(worker(name, precision, int(size), arguments.repeats, arguments.threads)))
+        return
+    load_before = os.getloadavg()[0]
+    lines = roofline(arguments.repeats, arguments.threads)
+    lines += ["", "| preset | precision | size | forward (s) | peak memory (MB) | PSNR vs fp32 (dB) |",
+              "|---|---|---|---|---|---|"]
+    for name, precision, size in CONFIGS:
+        done = subprocess.run([sys.executable, __file__, "--repeats", str(arguments.repeats), "--threads",
+                               str(arguments.threads), "--worker", name, precision, str(size)],
+                              capture_output=True, text=True, check=True)
+        result = json.loads(done.stdout.strip().splitlines()[-1])
+        psnr = "identical" if result["psnr_db"] == float("inf") else f"{result['psnr_db']:.1f}"
+        lines.append(f"| {name} | {precision} | {size}^2 | {result['seconds']:.3f} | {result['memory_mb']:.0f} | "
+                     f"{psnr if precision != 'float32' else 'reference'} |")
+        print(lines[-1], flush=True)
+    lines += ["", f"Load average (1 min) {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on "
+                  f"{cores()} cores."]
+    text = "\n".join([f"`python tools/bench.py --repeats {arguments.repeats} --threads {arguments.threads}`", "",
+                       *lines]) + "\n"
+    print(text)
+    arguments.out.parent.mkdir(parents=True, exist_ok=True)
+    arguments.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,82 @@
+"""fuse against the floor: reading the same RAW files with rawpy, side by side in one run.
+
+A bracket of five 6000 x 4000 DNGs from the simulated A7 (night scene, 3 EV apart from 1/4000 s; made in a
+temporary folder unless --bracket names one). Each repeat times, in turn: rawpy reading the five files
+(imread + the visible Bayer data), ``hdrcam.fuse`` (read, merge, demosaic, colour; nothing written) and the
+``hdrcam fuse`` command (a fresh process: start-up, fuse, the EXR and the PNG preview). Medians of --repeats.
+Usage: python tools/bench_fuse.py [--bracket DIR] [--repeats 3] [--out tools/results/fuse-speed.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import rawpy
+
+import hdrcam
+from hdrcam.hdr.bracket_input import bracket_paths
+from hdrcam.parallel import worker_threads
+
+PROFILE = "sony-a7-zeiss50-rank1"
+
+
+def read_with_rawpy(paths: list[Path]) -> None:
+    for path in paths:
+        with rawpy.imread(str(path)) as raw:
+            raw.raw_image_visible.copy()
+
+
+def seconds(function) -> float:
+    started = time.perf_counter()
+    function()
+    return time.perf_counter() - started
+
+
+def measure(bracket: Path, repeats: int, scratch: Path) -> list[str]:
+    paths = bracket_paths([bracket])
+    command = [str(Path(sys.executable).parent / "hdrcam"), "fuse", str(bracket), "--profile", PROFILE,
+               "--overwrite", "--out", str(scratch / "fused.exr")]
+    runs: dict[str, list[float]] = {"rawpy read": [], "hdrcam.fuse": [], "hdrcam fuse (command)": []}
+    load_before = os.getloadavg()[0]
+    for _ in range(repeats):
+        runs["rawpy read"].append(seconds(lambda: read_with_rawpy(paths)))
+        runs["hdrcam.fuse"].append(seconds(lambda: hdrcam.fuse([bracket], profile=PROFILE)))
+        runs["hdrcam fuse (command)"].append(seconds(lambda: subprocess.run(command, check=True,
+                                                                           stdout=subprocess.DEVNULL)))
+    floor = statistics.median(runs["rawpy read"])
+    lines = [f"{len(paths)} frames of 6000 x 4000 (`python tools/bench_fuse.py --repeats {repeats}`; {worker_threads()} "
+             "threads; medians):", "", "| what | seconds | x rawpy's read |", "|---|---|---|"]
+    for label, times in runs.items():
+        median = statistics.median(times)
+        lines.append(f"| {label} | {median:.2f} | {median / floor:.1f} |")
+    return lines + ["", f"Load average (1 min) {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end."]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--bracket", type=Path, default=None, help="an existing bracket (default: make one)")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--out", type=Path, default=Path("tools/results/fuse-speed.md"))
+    arguments = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        bracket = arguments.bracket
+        if bracket is None:
+            bracket = Path(folder) / "bracket"
+            hdrcam.capture_bracket(bracket, camera="sim", profile=PROFILE, scene="night", size_px=(6000, 4000),
+                                   stops=5, ev_step=3.0, seed=0)
+        lines = measure(bracket, arguments.repeats, Path(folder))
+    text = "\n".join(lines) + "\n"
+    print(text)
+    arguments.out.parent.mkdir(parents=True, exist_ok=True)
+    arguments.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
