@@ -15,9 +15,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import one_line_errors  # noqa: E402
+from reports import add_report_options, publish, refuse_existing  # noqa: E402
 
 import numpy as np
 
@@ -80,8 +85,9 @@ def psnr_db(estimate: np.ndarray, truth: np.ndarray) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--raw", type=Path, default=Path("../shared/data/raw/sony-ilce7rm3-DSC2164.ARW"))
-    parser.add_argument("--out", type=Path, default=Path("tools/results/demosaic.md"))
+    add_report_options(parser, "tools/results/demosaic.md")
     arguments = parser.parse_args()
+    refuse_existing(arguments)
     truths = {"real (A7R III, binned)": real_truth(arguments.raw)}
     truths |= {f"simulated night {seed}": simulated_truth(seed) for seed in (1, 2)}
     mosaics = {name: mosaic(truth) for name, truth in truths.items()}
@@ -100,11 +106,8 @@ def main() -> None:
         lines.append(f"| {label} | " + " | ".join(f"{s:.2f}" for s in scores) + f" | {per_24mp:.2f} |")
         print(lines[-1], flush=True)
     lines += ["", f"Load average (1 min) at the end: {os.getloadavg()[0]:.1f}."]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    arguments.out.parent.mkdir(parents=True, exist_ok=True)
-    arguments.out.write_text(text)
+    publish(arguments, lines)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(one_line_errors.run(main))

@@ -18,6 +18,10 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import one_line_errors  # noqa: E402
+from reports import add_report_options, publish, refuse_existing  # noqa: E402
+
 import rawpy
 
 import hdrcam
@@ -63,8 +67,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bracket", type=Path, default=None, help="an existing bracket (default: make one)")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=Path("tools/results/fuse-speed.md"))
+    add_report_options(parser, "tools/results/fuse-speed.md")
     arguments = parser.parse_args()
+    refuse_existing(arguments)
     with tempfile.TemporaryDirectory() as folder:
         bracket = arguments.bracket
         if bracket is None:
@@ -72,11 +77,8 @@ def main() -> None:
             hdrcam.capture_bracket(bracket, camera="sim", profile=PROFILE, scene="night", size_px=(6000, 4000),
                                    stops=5, ev_step=3.0, seed=0)
         lines = measure(bracket, arguments.repeats, Path(folder))
-    text = "\n".join(lines) + "\n"
-    print(text)
-    arguments.out.parent.mkdir(parents=True, exist_ok=True)
-    arguments.out.write_text(text)
+    publish(arguments, lines)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(one_line_errors.run(main))

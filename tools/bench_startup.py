@@ -16,6 +16,10 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import one_line_errors  # noqa: E402
+from reports import add_report_options, publish, refuse_existing  # noqa: E402
+
 REFERENCE = [sys.executable, "-c", "import numpy, rawpy, OpenEXR"]
 COMMANDS = {"hdrcam --help": ["--help"], "hdrcam fuse --help": ["fuse", "--help"],
             "hdrcam reconstruct --help": ["reconstruct", "--help"], "hdrcam design --help": ["design", "--help"],
@@ -36,8 +40,9 @@ def wall_seconds(command: list[str]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=11)
-    parser.add_argument("--out", type=Path, default=Path("tools/results/startup.md"))
+    add_report_options(parser, "tools/results/startup.md")
     arguments = parser.parse_args()
+    refuse_existing(arguments)
     runs: dict[str, list[float]] = {"import numpy, rawpy, OpenEXR": []} | {label: [] for label in COMMANDS}
     for _ in range(arguments.repeats):
         runs["import numpy, rawpy, OpenEXR"].append(wall_seconds(REFERENCE))
@@ -51,11 +56,8 @@ def main() -> None:
         median = statistics.median(seconds)
         lines.append(f"| `{label}` | {median:.3f} | {median / reference:.2f} |")
     lines += ["", f"Load average (1 min) at the end: {os.getloadavg()[0]:.1f}."]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    arguments.out.parent.mkdir(parents=True, exist_ok=True)
-    arguments.out.write_text(text)
+    publish(arguments, lines)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(one_line_errors.run(main))
