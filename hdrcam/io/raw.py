@@ -34,6 +34,7 @@ import numpy as np
 import tifffile
 
 from hdrcam.errors import InputError
+from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
 NO_COLOUR_MATRIX = "none (camera RGB)"
@@ -96,6 +97,9 @@ def read_raw_metadata(path: str | Path) -> RawMetadata:
     return _read(Path(path), with_pixels=False)[0]
 
 
+RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer and hdrcam's copy (uint16 each), a merge's float32 signal and masks
+
+
 def read_raw(path: str | Path) -> RawFrame:
     """A RAW file's metadata and Bayer digital numbers."""
     metadata, bayer = _read(Path(path), with_pixels=True)
@@ -112,7 +116,11 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
                          f"file ends at {tiff.file_bytes}; copy it from the card again")
     try:
-        with _libraw_stderr_silenced(), rawpy.imread(str(path)) as raw:
+        with _libraw_stderr_silenced(), rawpy.RawPy() as raw:
+            raw.open_file(str(path))  # the header only: sizes are checked before LibRaw allocates the pixels
+            check_image_size(str(path), int(raw.sizes.raw_height), int(raw.sizes.raw_width), RAW_BYTES_PER_PIXEL,
+                             "use a machine with more memory")
+            raw.unpack()
             _check_bayer(path, raw)
             tile = raw.raw_pattern[:2, :2].ravel()
             black = [float(b) for b in raw.black_level_per_channel]

@@ -203,3 +203,28 @@ def test_fuse_cli_on_a_zero_colour_matrix_exits_0_with_a_warning(tmp_path, capsy
     with pytest.warns(UserWarning, match="camera RGB"):  # the CLI prints it as "hdrcam: warning: ..."
         assert main(["fuse", str(tmp_path), "--out", str(tmp_path / "hdr.exr")]) == 0
     assert "error" not in capsys.readouterr().err
+
+
+def test_a_raw_too_large_for_the_memory_is_refused_before_its_pixels_are_decoded(tmp_path, monkeypatch):
+    """The sizes come from the header: with 100 MB of memory left a 64 x 48 DNG passes, and with 10 kB it is
+    refused naming the file and the numbers, before LibRaw unpacks anything."""
+    import rawpy
+
+    import hdrcam.limits as limits
+
+    radiance = np.full((48, 64), 2000.0)
+    path = write_dng(tmp_path / "small.dng", sensor_dn(radiance, 1.0, np.random.default_rng(0)))
+    unpacked = []
+
+    class Spy(rawpy.RawPy):
+        def unpack(self):
+            unpacked.append(self)
+            return super().unpack()
+
+    monkeypatch.setattr(rawpy, "RawPy", Spy)
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 100e6)
+    assert read_raw(path).bayer_dn.shape == (48, 64) and len(unpacked) == 1
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 10e3)
+    with pytest.raises(InputError, match=r"small\.dng.*64 x 48 px"):
+        read_raw(path)
+    assert len(unpacked) == 1
