@@ -36,13 +36,18 @@ def positive_int(text: str) -> int:
     return value
 
 
-def exposure_seconds(text: str) -> float:
-    """A shutter time in seconds: '1/4000', '0.5' or '2'."""
+def _fraction(text: str, examples: str) -> float:
+    """'a/b' or a plain number; ArgumentTypeError naming ``examples`` otherwise."""
     numerator, _, denominator = text.partition("/")
     try:
-        value = float(numerator) / float(denominator) if denominator else float(numerator)
+        return float(numerator) / float(denominator) if denominator else float(numerator)
     except (ValueError, ZeroDivisionError):
-        raise argparse.ArgumentTypeError(f"expected seconds such as 1/4000 or 0.5, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected {examples}, got {text!r}") from None
+
+
+def exposure_seconds(text: str) -> float:
+    """A shutter time in seconds: '1/4000', '0.5' or '2'."""
+    value = _fraction(text, "seconds such as 1/4000 or 0.5")
     if not 0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
     return value
@@ -50,11 +55,7 @@ def exposure_seconds(text: str) -> float:
 
 def thirds_of_ev(text: str) -> float:
     """An exposure step in EV that the shutter can take: a multiple of 1/3 ('1', '2/3', '0.333', '3')."""
-    numerator, _, denominator = text.partition("/")
-    try:
-        value = float(numerator) / float(denominator) if denominator else float(numerator)
-    except (ValueError, ZeroDivisionError):
-        raise argparse.ArgumentTypeError(f"expected EV such as 1, 2/3 or 3, got {text!r}") from None
+    value = _fraction(text, "EV such as 1, 2/3 or 3")
     notches = round(value * 3) if math.isfinite(value) else 0
     if notches < 1 or abs(notches - value * 3) > 0.01:
         raise argparse.ArgumentTypeError(f"must be a positive multiple of 1/3 EV (the shutter's notches), got {text!r}")
