@@ -19,7 +19,7 @@ only take that excess down, never up, so the result is never brighter than the p
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
   excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with
   A(v) = v - P * (v 1_U) (U: unclipped), A(y - P * 1_C) = A(P * H_U) + A(P * E) exactly. On the unclipped
-  pixels EVIDENCE_INNER_PX..EVIDENCE_OUTER_PX from the cluster, A(y - P * 1_C) is fitted by
+  pixels EVIDENCE_INNER_PX..evidence_outer_px(PSF) from the cluster, A(y - P * 1_C) is fitted by
   a A(P * E_proposed) + b A(P * D) + c, D = the most light the unclipped edge band can hide (y (1/P0 - 1),
   P0 the PSF's centre value), least squares. The kept share is a, shrunk by its significance z (residual
   variance, at least the noise's, x TEXTURE_CORRELATION): a (1 - (Z_MIN / z)^2) for z > Z_MIN, else 0 -
@@ -51,7 +51,7 @@ TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
 LOCAL_BOUND_PX = 3  # a clipped pixel answers for the unclipped pixels this close (the PSF centre's radius)
 LOCAL_BOUND_ITERATIONS = 3
 EVIDENCE_INNER_PX = 2  # the lens core: a highlight's own edge blurs this far (evidence starts beyond)
-EVIDENCE_OUTER_PX = 10  # the DOE's spill is read up to this far from the cluster
+EVIDENCE_ENERGY = 0.99  # the DOE's spill is read as far from the cluster as the PSF holds this share of its light
 Z_MIN = 3.0  # a streak amplitude this many standard deviations above zero is kept at (1 - 1/z^2) of its value
 TEXTURE_CORRELATION = 4.0  # neighbouring residuals are correlated (texture, PSF): variance x this
 MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, the frame is kept
@@ -110,6 +110,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     output = floored.copy()
     proposed = kept = 0.0
     radius = psf.shape[-1] // 2
+    outer_px = evidence_outer_px(psf)
     clusters = clipped_clusters(clipped, radius)
     for crop, own in clusters:
         mine = clipped_channels[crop] & own[..., None]
@@ -124,7 +125,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         kept_excess = kept_excess * _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
                                                      _beyond_reimaged(spill, unclipped, kernel)[inner],
                                                      _beyond_reimaged(band, unclipped, kernel)[inner],
-                                                     unclipped[inner], own, noise.sigma(frame[crop]))
+                                                     unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
         output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
         share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
         confidence[crop] = np.where(own, np.minimum(confidence[crop], share), confidence[crop])
@@ -179,14 +180,26 @@ def _beyond_reimaged(light: np.ndarray, unclipped: np.ndarray, kernel: torch.Ten
     return light - _convolve(np.where(unclipped, light, 0.0).astype(np.float32), kernel)
 
 
+def evidence_outer_px(psf: np.ndarray) -> int:
+    """Half-width (px) of the smallest square about the PSF's axis that holds EVIDENCE_ENERGY of every channel's
+    light (at least EVIDENCE_INNER_PX + 1): a compact ring is read close by, long streaks far out."""
+    centre = psf.shape[-1] // 2
+    totals = psf.sum(axis=(-2, -1))
+    for half_width in range(EVIDENCE_INNER_PX + 1, centre + 1):
+        window = psf[:, centre - half_width:centre + half_width + 1, centre - half_width:centre + half_width + 1]
+        if np.all(window.sum(axis=(-2, -1)) >= EVIDENCE_ENERGY * totals):
+            return half_width
+    return centre
+
+
 def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.ndarray, unclipped: np.ndarray,
-                     own: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+                     own: np.ndarray, sigma: np.ndarray, outer_px: int) -> np.ndarray:
     """(3,) shares in [0, 1] of a cluster's excess that the light beyond its lens core supports (module
     docstring, "Evidence"): ``observed`` = A(y - P 1_C), ``predicted`` = A(P * E), ``nuisance`` = A(P * D),
-    H x W x 3 each on the cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..EVIDENCE_OUTER_PX
+    H x W x 3 each on the cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..``outer_px``
     from ``own`` (the cluster's clipped pixels). ``sigma``: the frame's noise there."""
     inner = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
-    outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_OUTER_PX + 1,) * 2, np.uint8)) > 0
+    outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * outer_px + 1,) * 2, np.uint8)) > 0
     shares = np.ones(3, np.float32)
     for channel in range(3):
         ring = outer & ~inner & unclipped[..., channel]

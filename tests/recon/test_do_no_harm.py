@@ -350,3 +350,19 @@ def _nan_frame() -> np.ndarray:
 def test_reconstruct_refuses_frames_that_are_not_ldr_captures(model, name, frame):
     with pytest.raises(ValueError):
         reconstruct(frame, model)
+
+
+def test_the_evidence_band_reaches_as_far_as_the_psf_spreads_its_light():
+    """A Dirac keeps everything in its centre: the band stops just beyond the lens core. A PSF with 2 % of its
+    light 20 px out along a streak is read 20 px out; with 0.5 % there the 99 % square is again the core."""
+    from hdrcam.recon.consistency import EVIDENCE_INNER_PX, evidence_outer_px
+
+    def psf_with(far_share: float) -> np.ndarray:
+        psf = np.zeros((3, 63, 63), np.float32)
+        psf[:, 31, 31] = 1.0 - far_share
+        psf[:, 31, 51] = far_share
+        return psf
+
+    assert evidence_outer_px(psf_with(0.0)) == EVIDENCE_INNER_PX + 1
+    assert evidence_outer_px(psf_with(0.02)) == 20
+    assert evidence_outer_px(psf_with(0.005)) == EVIDENCE_INNER_PX + 1
