@@ -22,7 +22,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import one_line_errors  # noqa: E402
-from reports import add_report_options, publish, refuse_existing  # noqa: E402
+from reports import add_report_options, publish  # noqa: E402
 
 import numpy as np
 
@@ -87,7 +87,7 @@ def main() -> None:
     parser.add_argument("--raw", type=Path, default=Path("../shared/data/raw/sony-ilce7rm3-DSC2164.ARW"))
     add_report_options(parser, "tools/results/demosaic.md")
     arguments = parser.parse_args()
-    refuse_existing(arguments)
+    one_line_errors.refuse_existing(arguments.out, arguments.overwrite)
     truths = {"real (A7R III, binned)": real_truth(arguments.raw)}
     truths |= {f"simulated night {seed}": simulated_truth(seed) for seed in (1, 2)}
     mosaics = {name: mosaic(truth) for name, truth in truths.items()}

@@ -57,8 +57,7 @@ def main() -> int:
     parser.add_argument("--overwrite", action="store_true")
     arguments = parser.parse_args()
     report_path = arguments.out / "optics.md"
-    if report_path.exists() and not arguments.overwrite:
-        raise FileExistsError(f"{report_path} exists; pass --overwrite to replace it")
+    one_line_errors.refuse_existing(report_path, arguments.overwrite)
     profile = load_profile(arguments.profile)
     fresnel_profile = dataclasses.replace(profile, simulation=dataclasses.replace(profile.simulation,
                                                                                     propagation="fresnel"))

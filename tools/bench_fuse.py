@@ -20,7 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import one_line_errors  # noqa: E402
-from reports import add_report_options, publish, refuse_existing  # noqa: E402
+from reports import add_report_options, publish  # noqa: E402
 
 import rawpy
 
@@ -69,7 +69,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     add_report_options(parser, "tools/results/fuse-speed.md")
     arguments = parser.parse_args()
-    refuse_existing(arguments)
+    one_line_errors.refuse_existing(arguments.out, arguments.overwrite)
     with tempfile.TemporaryDirectory() as folder:
         bracket = arguments.bracket
         if bracket is None:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import one_line_errors  # noqa: E402
-from reports import add_report_options, publish, refuse_existing  # noqa: E402
+from reports import add_report_options, publish  # noqa: E402
 
 REFERENCE = [sys.executable, "-c", "import numpy, rawpy, OpenEXR"]
 COMMANDS = {"hdrcam --help": ["--help"], "hdrcam fuse --help": ["fuse", "--help"],
@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=11)
     add_report_options(parser, "tools/results/startup.md")
     arguments = parser.parse_args()
-    refuse_existing(arguments)
+    one_line_errors.refuse_existing(arguments.out, arguments.overwrite)
     runs: dict[str, list[float]] = {"import numpy, rawpy, OpenEXR": []} | {label: [] for label in COMMANDS}
     for _ in range(arguments.repeats):
         runs["import numpy, rawpy, OpenEXR"].append(wall_seconds(REFERENCE))

@@ -30,7 +30,7 @@ from hdrcam.data.scenes import SceneSource
 from hdrcam.io.atomic import write_text_atomic
 from hdrcam.evaluate.report import gains_over
 from hdrcam.train.checkpoint import load_model
-from one_line_errors import run  # tools/ is on sys.path when a tool runs
+from one_line_errors import refuse_existing, run  # tools/ is on sys.path when a tool runs
 
 SIZE_PX = 512
 PROCEDURAL_COUNT = 16
@@ -69,8 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --out report")
     arguments = parser.parse_args(argv)
-    if arguments.out.exists() and not arguments.overwrite:
-        raise FileExistsError(f"{arguments.out} exists; pass --overwrite to replace it")
+    refuse_existing(arguments.out, arguments.overwrite)
     model = load_model(arguments.checkpoint)
     sources = {data: SceneSource(data) for data in arguments.data}
     judges = {"shipped judge (reconstruct)": {}, "upper bound only (no evidence step)": {"evidence": False},

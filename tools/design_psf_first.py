@@ -81,8 +81,7 @@ def main() -> int:
     parser.add_argument("--overwrite", action="store_true")
     arguments = parser.parse_args()
     out_path = arguments.out / "heightmap.exr"
-    if out_path.exists() and not arguments.overwrite:
-        raise FileExistsError(f"{out_path} exists; pass --overwrite to replace it")
+    one_line_errors.refuse_existing(out_path, arguments.overwrite)
     profile = load_profile(arguments.profile)
     setup = OpticalSetup.from_profile(profile)
     heightmap = heightmap_for_doe(profile.doe, arguments.doe, seed=arguments.seed, dtype=torch.float64)

@@ -16,3 +16,9 @@ def run(main) -> int:
     except (HdrcamError, OSError) as error:
         print(f"{Path(sys.argv[0]).name}: error: {error}", file=sys.stderr)
         return 1
+
+
+def refuse_existing(path: Path, overwrite: bool) -> None:
+    """Before the work: a tool replaces an existing output only when asked (FileExistsError, one line)."""
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass --overwrite to replace it")

@@ -14,12 +14,6 @@ def add_report_options(parser: argparse.ArgumentParser, default_out: str) -> Non
     parser.add_argument("--overwrite", action="store_true", help="replace an existing report")
 
 
-def refuse_existing(arguments: argparse.Namespace) -> None:
-    """Before the work: FileExistsError if --out exists and --overwrite was not given."""
-    if arguments.out.exists() and not arguments.overwrite:
-        raise FileExistsError(f"{arguments.out} exists; pass --overwrite to replace it, or choose another --out")
-
-
 def publish(arguments: argparse.Namespace, lines: list[str]) -> None:
     """Print the report and write it atomically to --out."""
     text = "\n".join(lines) + "\n"

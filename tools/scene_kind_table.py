@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.io.atomic import write_text_atomic
-from one_line_errors import run  # tools/ is on sys.path when a tool runs
+from one_line_errors import refuse_existing, run  # tools/ is on sys.path when a tool runs
 
 HARM_DB = 0.3  # the generalisation issue's bar: no photograph more than this below its LDR capture
 
@@ -72,8 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --out table")
     arguments = parser.parse_args(argv)
-    if arguments.out.exists() and not arguments.overwrite:
-        raise FileExistsError(f"{arguments.out} exists; pass --overwrite to replace it")
+    refuse_existing(arguments.out, arguments.overwrite)
     with arguments.split.open(newline="") as handle:
         kinds = {row["file"].rsplit(".", 1)[0]: row["scene_kind"] for row in csv.DictReader(handle)}
     text = table(read_runs(arguments.metrics), kinds)
