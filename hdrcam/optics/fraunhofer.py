@@ -77,7 +77,8 @@ class FraunhoferPsf(nn.Module):
 
     def __init__(self, *, aperture_m: float, feature_pitch_m: float, features: int, pixel_pitch_m: float,
                  sensor_distance_m: float, focal_length_m: float, source_distance_m: float, material: str,
-                 band_wavelengths_m, psf_size_px: int, samples_per_feature: int = 2, subpixels: int = 3,
+                 band_wavelengths_m, psf_size_px: int, samples_per_feature: int = 1,
+                 subpixels: int = FRAUNHOFER_SUBPIXELS,
                  dtype: torch.dtype = torch.float32):
         super().__init__()
         complex_dtype = {torch.float32: torch.complex64, torch.float64: torch.complex128}[dtype]
@@ -152,7 +153,7 @@ def _check_defocus_sampling(curvature_per_m: float, aperture_m: float, cell_m: f
             f"{wavelength_m * 1e9:.0f} nm; bring the source nearer the focus distance or use more samples per feature")
 
 
-def fraunhofer_for(setup, heightmap: HeightMap, *, samples_per_feature: int = 1, subpixels: int = 3,
+def fraunhofer_for(setup, heightmap: HeightMap, *, samples_per_feature: int = 1, subpixels: int = FRAUNHOFER_SUBPIXELS,
                    dtype: torch.dtype = torch.float32) -> FraunhoferPsf:
     """The focal-plane PSF model of an :class:`hdrcam.optics.psf.OpticalSetup` and its height map's grid."""
     features = heightmap().shape[0]

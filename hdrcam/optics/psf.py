@@ -139,7 +139,7 @@ class PsfSimulator(nn.Module):
         super().__init__()
         self.setup, self.heightmap, self.dtype = setup, heightmap, dtype
         if setup.propagation == "fraunhofer":
-            self.fraunhofer = fraunhofer_for(setup, heightmap, subpixels=FRAUNHOFER_SUBPIXELS, dtype=dtype)
+            self.fraunhofer = fraunhofer_for(setup, heightmap, dtype=dtype)
             return
         grid = setup.grid
         coordinates = grid.coordinates_m()
