@@ -38,8 +38,7 @@ def run(arguments: argparse.Namespace) -> int:
     import numpy as np
 
     from hdrcam.io.png import write_png
-    from hdrcam.optics.fabrication import (design_wavelength_m, ideal_multilevel_efficiency, quantisation_strehl,
-                                           quantise_heightmap)
+    from hdrcam.optics.fabrication import ideal_multilevel_efficiency, quantisation_strehl, quantise_heightmap
     from hdrcam.optics.heightmap import load_heightmap, save_heightmap
     from hdrcam.optics.materials import refractive_index
 
@@ -62,7 +61,7 @@ def run(arguments: argparse.Namespace) -> int:
         quantised = quantise_heightmap(heights, profile.doe.h_max_m, levels)
     except ValueError as error:
         raise InputError(f"{arguments.heightmap}: {error}") from None
-    wavelength = design_wavelength_m(profile.doe.h_max_m, lambda w: refractive_index(profile.doe.material, w))
+    wavelength = profile.doe.design_wavelength_m  # where h_max is one wave (the profile derives one from the other)
     phase_per_height = 2 * np.pi / wavelength * (float(refractive_index(profile.doe.material, wavelength)) - 1)
     report = {
         "hdrcam_version": __version__, "input": str(arguments.heightmap), "profile": profile.name,
