@@ -52,6 +52,18 @@ def log_average_luminance(hdr_rgb: np.ndarray) -> float:
     return float(np.exp(total / (hdr_rgb.shape[0] * hdr_rgb.shape[1])))
 
 
+def reduced_for_preview(hdr_rgb: np.ndarray, max_side_px: int) -> np.ndarray:
+    """Linear H x W x 3 shrunk by the smallest whole factor that brings its longer side to ``max_side_px`` or
+    less, each output pixel the mean of a factor x factor block (light averaged in linear units, as a camera
+    with larger pixels would record it); unchanged when already that small."""
+    factor = -(-max(hdr_rgb.shape[:2]) // max_side_px)
+    if factor <= 1:
+        return hdr_rgb
+    height, width = hdr_rgb.shape[0] // factor, hdr_rgb.shape[1] // factor
+    return cv2.resize(np.ascontiguousarray(hdr_rgb[:height * factor, :width * factor], np.float32), (width, height),
+                      interpolation=cv2.INTER_AREA)
+
+
 def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | None = None) -> np.ndarray:
     """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``).
 
