@@ -1,13 +1,15 @@
 """The frames of a bracket, read and checked: same size, CFA, ISO and aperture; distinct exposures.
 
 A bracket is a bracket.json (or a folder holding one), a folder of RAW files, or a list of RAW files; without
-a manifest the exposures come from the files' metadata. Frames are sorted from shortest to longest. In a
+a manifest the exposures come from the files' metadata; with one, each frame must still have the sha256 it
+was captured with. Frames are sorted from shortest to longest. In a
 folder, files LibRaw does not open as RAW are skipped with a warning naming each; a damaged RAW is refused.
 """
 
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -16,13 +18,15 @@ from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
 from hdrcam.io.raw import NotRawError, RawFrame, read_raw
+from hdrcam.parallel import worker_threads
 
 
-def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
-    """RAW paths of a bracket given as a manifest, a folder or files.
+def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, str | None]]:
+    """RAW paths of a bracket given as a manifest, a folder or files, each with the sha256 its manifest recorded
+    (None without a manifest).
 
-    A manifest must be complete and of ``kind`` ("light" or "dark"), and every frame must still have the
-    sha256 it was captured with: a frame changed since, or darks given where lights belong, are refused.
+    A manifest must be complete and of ``kind`` ("light" or "dark"), and list no missing frame: a capture
+    left unfinished, or darks given where lights belong, are refused.
     """
     if len(sources) == 1 and (sources[0].suffix == ".json" or (sources[0] / MANIFEST_NAME).is_file()):
         bracket = load_bracket(sources[0])
@@ -32,30 +36,52 @@ def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
         if bracket.kind != kind:
             raise InputError(f"{sources[0]}: a bracket of {bracket.kind} frames where {kind} frames are expected"
                              + ("; give dark frames with --darks" if bracket.kind == "dark" else ""))
-        for frame, path in zip(bracket.frames, bracket.paths()):
+        for path in bracket.paths():
             if not path.is_file():
                 raise InputError(f"{path}: listed in {sources[0]} but missing; restore it")
-            if sha256_of(path) != frame.sha256:
-                raise InputError(f"{path}: changed since it was captured (its sha256 differs from the manifest's); "
-                                 "restore the original frame")
-        return bracket.paths()
+        return [(path, frame.sha256) for frame, path in zip(bracket.frames, bracket.paths())]
     if len(sources) == 1 and sources[0].is_dir():
-        return raw_files(sources[0])
-    return list(sources)
+        return [(path, None) for path in raw_files(sources[0])]
+    return [(path, None) for path in sources]
+
+
+def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
+    """The RAW paths of :func:`bracket_files` (whether each frame still has its sha256 is checked by
+    :func:`read_bracket`)."""
+    return [path for path, _ in bracket_files(sources, kind)]
 
 
 def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
-    """Read and check every frame; InputError naming the offending file otherwise."""
-    paths = bracket_paths(sources, kind)
+    """Read and check every frame; InputError naming the offending file otherwise.
+
+    Every frame listed in a manifest must still have the sha256 it was captured with. The files are hashed
+    and decoded on a thread per core, so hashing (which releases the GIL) overlaps LibRaw's decoding (which
+    does not), and each light frame's clip level is measured as soon as it is decoded.
+    """
+    files = bracket_files(sources, kind)
     from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
-    frames = []
-    for path in paths:
+    with ThreadPoolExecutor(worker_threads()) as pool:
+        work = [(pool.submit(sha256_of, path) if expected else None, pool.submit(_read, path, kind == "light"))
+                for path, expected in files]
         try:
-            frames.append(read_raw(path))
-        except NotRawError as error:
-            if not from_folder:
-                raise
-            warnings.warn(f"skipped {error}")
+            for (path, expected), (digest, _) in zip(files, work):
+                if digest is not None and digest.result() != expected:
+                    raise InputError(f"{path}: changed since it was captured (its sha256 differs from the "
+                                     "manifest's); restore the original frame")
+            frames = []
+            for (path, _), (_, read) in zip(files, work):
+                try:
+                    frames.append(read.result())
+                except NotRawError as error:
+                    if not from_folder:
+                        raise
+                    warnings.warn(f"skipped {error}")
+        except BaseException:
+            for futures in work:
+                for future in futures:
+                    if future is not None:
+                        future.cancel()
+            raise
     if len(frames) < 1:
         raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
     frames.sort(key=lambda f: f.metadata.exposure_s)
@@ -83,3 +109,10 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
 
 def _rounded(f_number: float | None) -> float | None:
     return None if f_number is None else round(f_number, 1)
+
+
+def _read(path: Path, measure_clip_level: bool) -> RawFrame:
+    frame = read_raw(path)
+    if measure_clip_level:
+        frame.clip_level_tile_dn  # noqa: B018 - a cached property, measured here on the worker thread
+    return frame
