@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -21,9 +22,11 @@ from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.raw import RawFrame
 from hdrcam.io.raw_clipping import clipped_samples
+from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
 UNITS = "relative radiance: full wells per second at ISO 100"
+COLOUR_STRIP_ROWS = 64
 
 
 @dataclasses.dataclass
@@ -78,15 +81,26 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     meta = frames[0].metadata
     rgb = demosaic(merge.rate, meta.cfa_pattern, demosaic_method)
     variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, demosaic_method) if with_variance else None
-    clipped = cv2.dilate(merge.clipped_everywhere.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    clipped = cv2.dilate(merge.clipped_everywhere.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
     colour = "camera RGB"
     if not camera_rgb and not meta.has_colour_matrix:
         warnings.warn(f"{meta.path.name}: no usable colour matrix (LibRaw's and the DNG tags' are missing or "
                       "zero): the output stays in camera RGB")
     elif not camera_rgb:
         matrix = camera_to_srgb_matrix(meta.xyz_to_camera, meta.as_shot_neutral).astype(np.float32)
-        rgb = rgb @ matrix.T
+        transformed(rgb, matrix)
         if variance is not None:
-            variance = variance @ (matrix ** 2).T
+            transformed(variance, matrix ** 2)
         colour = "linear sRGB (D65)"
-    return FusedImage(rgb.astype(np.float32), clipped, variance, merge, frames, colour)
+    return FusedImage(rgb, clipped, variance, merge, frames, colour)
+
+
+def transformed(pixels: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """``pixels`` (H x W x 3 float32) replaced by ``pixels @ matrix.T``, a strip of rows at a time in a thread
+    pool (no second full-size image)."""
+    def strip(rows: slice) -> None:
+        pixels[rows] = pixels[rows] @ matrix.T
+
+    with ThreadPoolExecutor(worker_threads()) as pool:
+        list(pool.map(strip, strips(pixels.shape[0], COLOUR_STRIP_ROWS)))
+    return pixels

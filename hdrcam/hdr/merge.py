@@ -14,29 +14,30 @@ Units of the result: relative radiance, full wells per second at ISO 100 (1.0 = 
 sensor in one second at base ISO).
 
 Speed: every per-pixel step runs on strips of rows in a thread pool (one thread per core; numpy releases the
-GIL), and each pixel's arithmetic does not depend on the strip: a strip size changes nothing but the order
-in which the exposure-ratio sums (float64) are added.
+GIL), converting the uint16 data of the strip to float32 signals as it goes (no full-size float copy of the
+frames), with in-place float32 arithmetic; each pixel's arithmetic does not depend on the strip, so a strip
+size changes nothing but the exposure-ratio sums' rounding (hdrcam.hdr.exposure_ratios, ~1e-7).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.hdr.exposure_ratios import estimate_exposures
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import clipped_samples, tiled
+from hdrcam.io.raw_clipping import tiled
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
 CLIP_MARGIN = 0.01  # of the black-to-clip range
-MIN_RATIO_SAMPLES = 200
-RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
-SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame, for ratio estimation
-STRIP_ROWS = 16  # rows per work item (5 frames x 16 rows x 6000 px of float32: 1.9 MB of temporaries)
+STRIP_ROWS = 16  # rows per work item: each of the ~20 passes per sample reads a strip's temporaries (a few
+# 16 x 6000 px float32 arrays per frame) from the caches instead of memory
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,10 +96,8 @@ def black_subtracted(frame: RawFrame, dark: RawFrame | None = None, rows: slice 
                              f"{frame.bayer_dn.shape}")
         return bayer - dark.bayer_dn[rows].astype(np.float32)
     top = rows.indices(frame.bayer_dn.shape[0])[0]
-    tile = np.roll(frame.metadata.black_level_tile(), -(top % 2), axis=0)  # the CFA phase of the first row
     height, width = bayer.shape
-    black = np.tile(tile, ((height + 1) // 2, (width + 1) // 2))[:height, :width]
-    return bayer - black
+    return bayer - tiled(np.roll(frame.metadata.black_level_tile(), -(top % 2), axis=0), height, width)
 
 
 def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:
@@ -110,58 +109,34 @@ def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:
 def dilated(mask: np.ndarray) -> np.ndarray:
     """A clipped-sample mask grown by one pixel: neighbours of clipped samples (blooming, crosstalk, and the
     demosaicing footprint) are not trusted either."""
-    return cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if not mask.any():
+        return mask
+    return cv2.dilate(mask.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
 
 
-def estimate_exposures(signals: list[np.ndarray], masks: list[np.ndarray], labelled_s: np.ndarray,
-                       threshold_dn: float, noise_floor_dn: float, notes: list[str],
-                       pool: ThreadPoolExecutor | None = None) -> np.ndarray:
-    """True exposure times from the data: adjacent-frame ratios, anchored to the labels' geometric mean.
+class _StripSignals:
+    """Every frame's signal (float32 DN above black, or above its dark frame) on a strip of rows, converted
+    from the uint16 data when asked: 2 bytes per sample are read instead of a stored float32 copy's 4."""
 
-    The ratio of frame k+1 to k is sum(y_k+1) / sum(y_k) over pixels unclipped in both whose shorter-frame
-    signal is below RATIO_HEADROOM of the clip level divided by the ratio, and which carry signal: a third
-    frame (k+2, else k-1) is above SIGNAL_FLOOR read-noise sigmas there or clipped. Selecting on a frame
-    outside the pair keeps the selection independent of the pair's noise (selecting on a noisy value near a
-    floor biases the ratio), while dropping the empty background, whose noise would swamp a point source.
-    """
-    ratios = []
-    parts = strips(signals[0].shape[0], STRIP_ROWS)
-    for k in range(len(signals) - 1):  # masks: clipped samples, not dilated (each sample stands alone here)
-        labelled = labelled_s[k + 1] / labelled_s[k]
-        other = k + 2 if k + 2 < len(signals) else k - 1
-        candidates = np.empty(signals[0].shape, bool)  # unclipped in both frames and carrying signal
+    def __init__(self, frames: list[RawFrame], darks: list[RawFrame | None]):
+        self.frames, self.darks = frames, darks
+        height, width = frames[0].bayer_dn.shape
+        for dark in darks:
+            if dark is not None and dark.bayer_dn.shape != (height, width):
+                raise InputError(f"{dark.metadata.path}: dark frame size {dark.bayer_dn.shape} differs from "
+                                 f"{(height, width)}")
+        black_tile = frames[0].metadata.black_level_tile()
+        rows = min(STRIP_ROWS, height)
+        self.black = [tiled(np.roll(black_tile, -phase, axis=0), rows, width) for phase in (0, 1)]
 
-        def select(rows: slice, k=k, other=other) -> None:
-            candidates[rows] = ~masks[k][rows] & ~masks[k + 1][rows]
-            if other >= 0:
-                candidates[rows] &= (signals[other][rows] > SIGNAL_FLOOR * noise_floor_dn) | masks[other][rows]
-
-        list((pool.map if pool else map)(select, parts))
-        ratio, count = labelled, 0
-        for _ in range(3):  # the upper bound depends on the ratio: refine it
-            bound = RATIO_HEADROOM * threshold_dn / ratio
-
-            def sums(rows: slice, k=k, bound=bound) -> tuple[int, float, float]:
-                short = signals[k][rows]
-                valid = candidates[rows] & (short < bound)
-                return (int(np.count_nonzero(valid)), float(short[valid].sum(dtype=np.float64)),
-                        float(signals[k + 1][rows][valid].sum(dtype=np.float64)))
-
-            totals = np.array(list((pool.map if pool else map)(sums, parts)), np.float64).sum(axis=0)
-            count, denominator = int(totals[0]), float(totals[1])
-            if count < MIN_RATIO_SAMPLES or denominator <= 0:
-                break
-            ratio = float(totals[2]) / denominator
-        if count < MIN_RATIO_SAMPLES or ratio <= 1.0:
-            notes.append(f"frames {k}-{k + 1}: only {count} pixels usable in both; using the labelled ratio "
-                         f"{labelled:.4f}")
-            ratio = labelled
-        else:
-            notes.append(f"frames {k}-{k + 1}: ratio {ratio:.4f} from {count} pixels (labels say {labelled:.4f})")
-        ratios.append(ratio)
-    relative = np.concatenate([[1.0], np.cumprod(ratios)])
-    scale = np.exp(np.mean(np.log(labelled_s)) - np.mean(np.log(relative)))
-    return relative * scale
+    def __call__(self, rows: slice) -> list[np.ndarray]:
+        top, bottom, _ = rows.indices(self.frames[0].bayer_dn.shape[0])
+        black = self.black[top % 2][:bottom - top]
+        signals = []
+        for frame, dark in zip(self.frames, self.darks):
+            subtrahend = black if dark is None else dark.bayer_dn[rows]
+            signals.append(np.subtract(frame.bayer_dn[rows], subtrahend, dtype=np.float32))
+        return signals
 
 
 def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFrame | None] | None = None,
@@ -181,53 +156,80 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     clip = float((clip_tile - black_tile).min())
     threshold = clip * (1.0 - CLIP_MARGIN)
     height, width = frames[0].bayer_dn.shape
-    signals = [np.empty((height, width), np.float32) for _ in frames]
+    strip_signals = _StripSignals(frames, darks)
+    row_strips = strips(height, STRIP_ROWS)
     clipped = [np.empty((height, width), bool) for _ in frames]
     labelled = np.array([frame.metadata.exposure_s for frame in frames])
+    to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
     rate = np.empty((height, width), np.float32)
     variance = np.empty((height, width), np.float32)
-    everywhere = np.empty((height, width), bool)
-    usable_frames = np.zeros((height, width), np.uint8)
+    usable_frames = np.empty((height, width), np.uint8)
+    strip_height = min(STRIP_ROWS, height)
+    clip_above_black = [tiled(np.roll(threshold_tile - black_tile, -phase, axis=0), strip_height, width)
+                        for phase in (0, 1)]  # per CFA row phase of a strip's first row
 
-    def prepare(rows: slice) -> None:
-        for k, (frame, dark) in enumerate(zip(frames, darks)):
-            signals[k][rows] = black_subtracted(frame, dark, rows)
-            phase = rows.indices(height)[0] % 2  # the CFA row phase of the strip's first row
-            clipped[k][rows] = clipped_samples(frame.bayer_dn[rows], np.roll(threshold_tile, -phase, axis=0))
+    # integer data at or above a threshold is at or above its ceiling: one uint16 comparison per sample
+    first_clipped_dn = [tiled(np.roll(np.ceil(threshold_tile), -phase, axis=0), strip_height, width).astype(np.uint16)
+                        for phase in (0, 1)]
+
+    def find_clipped(rows: slice) -> None:
+        top, bottom, _ = rows.indices(height)
+        for k, frame in enumerate(frames):
+            np.greater_equal(frame.bayer_dn[rows], first_clipped_dn[top % 2][:bottom - top], out=clipped[k][rows])
 
     def merge_strip(rows: slice) -> None:
-        y = np.stack([s[rows] for s in signals])
-        usable = ~np.stack([m[rows] for m in masks])
-        usable_frames[rows] = (usable.astype(np.uint8) << np.arange(len(frames), dtype=np.uint8)[:, None, None]).sum(
-            axis=0, dtype=np.uint8)
-        t = exposures[:, None, None].astype(np.float32)
-        estimate = _weighted(y, t, usable, np.maximum(y, 0.0) * noise.gain_dn_per_e + read_variance)[0]
-        pooled = np.maximum(estimate, 0.0)[None] * t * noise.gain_dn_per_e + read_variance
-        estimate, information = _weighted(y, t, usable, pooled)
-        none = ~usable.any(axis=0)
-        phase = rows.indices(height)[0] % 2
-        lower_bound = tiled(np.roll(threshold_tile - black_tile, -phase, axis=0), y.shape[1], width) / exposures[0]
-        estimate[none] = lower_bound[none]
-        information[none] = 0.0
-        rate[rows], everywhere[rows] = estimate, none
-        variance[rows] = np.where(none, np.inf, 1.0 / np.maximum(information, 1e-30))
+        top, bottom, _ = rows.indices(height)
+        unusable = [mask[rows] for mask in masks]
+        bits = usable_frames[rows]  # bit k set where frame k is usable: all bits, less those of unusable frames
+        bits[...] = (1 << len(frames)) - 1
+        for k, mask in enumerate(unusable):
+            bits ^= np.left_shift(mask.view(np.uint8), k)
+        signals = strip_signals(rows)
+        times = exposures.astype(np.float32)
+        rates = [np.divide(y, t) for y, t in zip(signals, times)]  # per frame, DN/s
+        scratch = np.empty_like(rates[0])
+
+        def own_variance(k: int) -> np.ndarray:  # Var(y_k) at the sample itself: g max(y_k, 0) + r^2
+            np.maximum(signals[k], 0.0, out=scratch)
+            np.multiply(scratch, noise.gain_dn_per_e, out=scratch)
+            return np.add(scratch, read_variance, out=scratch)
+
+        def pooled_variance(k: int) -> np.ndarray:  # Var(y_k) at the pooled estimate: g max(x, 0) t_k + r^2
+            np.multiply(pooled, times[k], out=scratch)
+            np.multiply(scratch, noise.gain_dn_per_e, out=scratch)
+            return np.add(scratch, read_variance, out=scratch)
+
+        estimate, _ = _weighted(rates, times, unusable, own_variance)
+        pooled = np.maximum(estimate, 0.0, out=estimate)
+        estimate, information = _weighted(rates, times, unusable, pooled_variance)
+        none = bits == 0
+        np.copyto(estimate, clip_above_black[top % 2][:bottom - top] / exposures[0], where=none)
+        np.multiply(estimate, to_relative, out=rate[rows])
+        np.maximum(information, 1e-30, out=information)
+        np.divide(1.0, information, out=variance[rows])
+        variance[rows] *= to_relative ** 2
+        np.copyto(variance[rows], np.finfo(np.float32).max, where=none)
 
     with ThreadPoolExecutor(threads or worker_threads()) as pool:
-        list(pool.map(prepare, strips(height, STRIP_ROWS)))
-        exposures = estimate_exposures(signals, clipped, labelled, threshold, np.sqrt(read_variance), notes, pool) \
+        list(pool.map(find_clipped, row_strips))
+        exposures = estimate_exposures(strip_signals, clipped, row_strips, labelled, threshold,
+                                       np.sqrt(read_variance), notes, pool) \
             if estimate_ratios and len(frames) > 1 else labelled.copy()
         masks = list(pool.map(dilated, clipped))
-        list(pool.map(merge_strip, strips(height, STRIP_ROWS)))
-    to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
-    variance *= to_relative ** 2
-    variance[everywhere] = np.float32(np.finfo(np.float32).max)
-    return BayerMerge(rate * to_relative, variance, everywhere, exposures, labelled, clip, clip_tile, notes,
+        list(pool.map(merge_strip, row_strips))
+    return BayerMerge(rate, variance, usable_frames == 0, exposures, labelled, clip, clip_tile, notes,
                       usable_frames, noise, read_variance, to_relative)
 
 
-def _weighted(y: np.ndarray, t: np.ndarray, usable: np.ndarray, variance_dn2: np.ndarray):
-    """sum_k w_k (y_k / t_k) / sum_k w_k with w_k = t_k^2 / Var(y_k) on usable samples; also sum_k w_k."""
-    weights = np.where(usable, t * t / variance_dn2, np.float32(0.0))
-    information = weights.sum(axis=0)
-    estimate = (weights * (y / t)).sum(axis=0) / np.maximum(information, 1e-30)
-    return estimate.astype(np.float32), information
+def _weighted(rates: list[np.ndarray], times: np.ndarray, unusable: list[np.ndarray],
+              variance_dn2: Callable[[int], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(sum_k w_k x_k / sum_k w_k, sum_k w_k) with w_k = t_k^2 / Var(y_k) on usable samples (float32, in frame
+    order); ``x_k``: frame k's rate y_k / t_k, ``variance_dn2(k)``: Var(y_k) in DN^2 (a scratch array)."""
+    numerator, information = np.zeros_like(rates[0]), np.zeros_like(rates[0])
+    for k, (rate, t) in enumerate(zip(rates, times)):
+        weight = np.divide(t * t, variance_dn2(k))
+        np.copyto(weight, 0.0, where=unusable[k])
+        information += weight
+        weight *= rate
+        numerator += weight
+    return np.divide(numerator, np.maximum(information, 1e-30), out=numerator), information

@@ -17,6 +17,7 @@ colour-demosaicing (and numpy) are imported on first use: the command line reads
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -30,6 +31,7 @@ DEFAULT_METHOD = "bilinear"
 _OPENCV_LAYOUT = {"RGGB": "BG", "BGGR": "RG", "GRBG": "GB", "GBRG": "GR"}
 _GREEN_WEIGHTS = ((0, 1, 0), (1, 4, 1), (0, 1, 0))  # / 4: OpenCV's bilinear interpolation
 _RED_BLUE_WEIGHTS = ((1, 2, 1), (2, 4, 2), (1, 2, 1))
+FLOAT_STRIP_ROWS = 32
 
 
 def cfa_masks(shape: tuple[int, int], pattern: str) -> np.ndarray:
@@ -70,10 +72,34 @@ def demosaic(bayer: np.ndarray, pattern: str, method: str = DEFAULT_METHOD) -> n
         return cv2.cvtColor(np.ascontiguousarray(bayer), code).astype(np.float32)
     if method != "bilinear":
         raise ValueError(f"{method} demosaicing takes 8/16-bit data; float data: {', '.join(FLOAT_METHODS)}")
-    masks = cfa_masks(bayer.shape, pattern)
-    rgb = np.empty((*bayer.shape, 3), np.float32)
-    for channel in range(3):
-        weights = np.array(_GREEN_WEIGHTS if channel == 1 else _RED_BLUE_WEIGHTS, np.float32) / 4
-        rgb[..., channel] = cv2.filter2D(np.ascontiguousarray(bayer * masks[channel], np.float32), -1, weights,
-                                         borderType=cv2.BORDER_REFLECT_101)
+    return _float_bilinear(np.asarray(bayer, np.float32), pattern)
+
+
+def _float_bilinear(bayer: np.ndarray, pattern: str) -> np.ndarray:
+    """OpenCV's bilinear weights applied by cv2.filter2D to each colour's samples (zeros elsewhere), on strips
+    of FLOAT_STRIP_ROWS rows (plus one row of context each side) in a thread pool: every output pixel depends
+    only on its 3 x 3 neighbourhood, so the strips give what the whole image gives, and the temporaries stay
+    small instead of six full-size planes."""
+    import cv2
+    import numpy as np
+
+    from hdrcam.parallel import strips, worker_threads
+
+    height, width = bayer.shape
+    rgb = np.empty((height, width, 3), np.float32)
+    kernels = [np.array(_GREEN_WEIGHTS if channel == 1 else _RED_BLUE_WEIGHTS, np.float32) / 4 for channel in range(3)]
+
+    def strip(rows: slice) -> None:
+        top, bottom = max(rows.start - 1, 0), min(rows.stop + 1, height)
+        samples = bayer[top:bottom]
+        planes = np.zeros((3, bottom - top, width), np.float32)
+        for position, colour in enumerate(pattern):
+            row, column = (position // 2 + top) % 2, position % 2  # the tile position's phase within the strip
+            planes[CFA_CHANNELS[colour], row::2, column::2] = samples[row::2, column::2]
+        for channel in range(3):
+            filtered = cv2.filter2D(planes[channel], -1, kernels[channel], borderType=cv2.BORDER_REFLECT_101)
+            rgb[rows, :, channel] = filtered[rows.start - top:rows.stop - top]
+
+    with ThreadPoolExecutor(worker_threads()) as pool:
+        list(pool.map(strip, strips(height, FLOAT_STRIP_ROWS)))
     return rgb
