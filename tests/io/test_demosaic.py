@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import hdrcam.io.demosaic as demosaicing
 from hdrcam.io.demosaic import METHODS, cfa_masks, demosaic
 
 PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
@@ -39,3 +40,11 @@ def test_float_bilinear_is_opencvs_integer_bilinear(pattern):
 def test_edge_aware_refuses_float_data():
     with pytest.raises(ValueError, match="8/16-bit"):
         demosaic(np.zeros((8, 8), np.float32), "RGGB", "edge-aware")
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_float_bilinear_on_strips_is_the_whole_image(pattern, monkeypatch):
+    bayer = np.random.default_rng(1).normal(0, 1000, (23, 18)).astype(np.float32)
+    whole = demosaic(bayer, pattern)  # one strip
+    monkeypatch.setattr(demosaicing, "FLOAT_STRIP_ROWS", 3)  # strips starting on either CFA row phase
+    np.testing.assert_array_equal(demosaic(bayer, pattern), whole)

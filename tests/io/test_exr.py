@@ -7,7 +7,7 @@ import OpenEXR
 import pytest
 
 from hdrcam.errors import InputError, OutputExistsError
-from hdrcam.io.exr import HALF_MAX, read_exr, write_exr
+from hdrcam.io.exr import HALF_MAX, read_exr, write_exr, write_exr_channels
 
 
 @pytest.mark.parametrize("name", ["Bonita", "Cannon", "Carrots", "Desk", "MtTamWest", "Flowers"])
@@ -76,3 +76,21 @@ def test_missing_file_and_missing_colour_channels(tmp_path):
     write_exr(tmp_path / "mono.exr", np.ones((2, 2), np.float32))
     with pytest.raises(InputError, match="not R, G, B"):
         read_exr(tmp_path / "mono.exr").rgb()
+
+
+def test_uncompressed_and_zip_files_hold_the_same_planes_and_say_which_they_are(tmp_path):
+    rng = np.random.default_rng(0)
+    planes = {"R": rng.random((20, 30), np.float32), "clipped": (rng.random((20, 30)) > 0.9).astype(np.float32)}
+    sizes = {}
+    for compression, code in (("none", OpenEXR.NO_COMPRESSION), ("zip", OpenEXR.ZIP_COMPRESSION)):
+        path = write_exr_channels(tmp_path / f"{compression}.exr", planes, compression=compression)
+        image = read_exr(path)
+        assert image.channels.keys() == planes.keys()
+        for name, plane in planes.items():
+            np.testing.assert_array_equal(image.channels[name], plane)
+        with OpenEXR.File(str(path), header_only=True) as file:
+            assert file.header()["compression"] == code
+        sizes[compression] = path.stat().st_size
+    assert sizes["zip"] < sizes["none"]
+    with pytest.raises(ValueError, match="compression"):
+        write_exr_channels(tmp_path / "x.exr", planes, compression="piz")
