@@ -114,7 +114,8 @@ def calibrate_psf(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, 
 def design(out: str | Path, *, preset: str = "fast", profile: str = "simulated", doe: str | None = "rank1",
            psf: str | None = None, data: str = "procedural", steps: int = 1000, batch: int = 4, crop_px: int = 128,
            learning_rate: float | None = None, seed: int = 0, checkpoint_every: int = 100, resume: bool = False,
-           vgg_weights: str | Path | None = None, device: str = "auto", quiet: bool = False) -> dict:
+           vgg_weights: str | Path | None = None, device: str = "auto", quiet: bool = False,
+           precision: str = "float32", channels_last: bool = False, data_workers: int | None = None) -> dict:
     """Train the reconstruction network and (with ``doe`` rank1 or freeform) the DOE end to end.
 
     ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
@@ -126,16 +127,19 @@ def design(out: str | Path, *, preset: str = "fast", profile: str = "simulated",
     from hdrcam.train.config import TrainConfig
 
     config = TrainConfig(preset=preset, data=data, profile=profile, doe=None if psf else doe, psf=psf, steps=steps,
-                         batch=batch, crop_px=crop_px, seed=seed, checkpoint_every=checkpoint_every)
+                         batch=batch, crop_px=crop_px, seed=seed, checkpoint_every=checkpoint_every,
+                         precision=precision, channels_last=channels_last)
     if learning_rate:
         config.learning_rate = learning_rate
-    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet)
+    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet,
+                  data_workers=data_workers)
 
 
 def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None = None, data: str = "procedural",
              steps: int = 200, batch: int = 4, crop_px: int = 128, learning_rate: float = 2e-4, seed: int = 0,
              checkpoint_every: int = 100, resume: bool = False, vgg_weights: str | Path | None = None,
-             device: str = "auto", quiet: bool = False) -> dict:
+             device: str = "auto", quiet: bool = False, precision: str = "float32", channels_last: bool = False,
+             data_workers: int | None = None) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; the learning rate starts gentler (2e-4). Writes the
     run folder ``out``; returns the last logged step."""
@@ -149,17 +153,20 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     state = read_checkpoint(start)
     config = TrainConfig(preset=state["preset"], data=data, profile=state["profile"], doe=None, psf=str(psf),
                          steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
-                         checkpoint_every=checkpoint_every, init_checkpoint=str(start))
-    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet)
+                         checkpoint_every=checkpoint_every, init_checkpoint=str(start), precision=precision,
+                         channels_last=channels_last)
+    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet,
+                  data_workers=data_workers)
 
 
-def _train(config, out: str | Path, *, resume: bool, vgg_weights, device: str, quiet: bool) -> dict:
+def _train(config, out: str | Path, *, resume: bool, vgg_weights, device: str, quiet: bool,
+           data_workers: int | None) -> dict:
     import torch
 
     from hdrcam.train.design import train
 
     return train(config, Path(out), resume=resume, vgg_weights=Path(vgg_weights) if vgg_weights else None,
-                 device=None if device == "auto" else torch.device(device), quiet=quiet)
+                 device=None if device == "auto" else torch.device(device), quiet=quiet, data_workers=data_workers)
 
 
 def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None, *, data: str = "procedural",

@@ -37,10 +37,19 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
     parser.add_argument("--random-vgg", action="store_true",
                         help="use random VGG-19 features when no weights exist (tests only: no perceptual meaning)")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
+    parser.add_argument("--precision", choices=("float32", "bfloat16", "float16"), default=None,
+                        help="the network's forward in training (default float32; bfloat16/float16 autocast on a "
+                             "GPU, float16 CUDA only; optics and losses stay float32)")
+    parser.add_argument("--channels-last", action="store_true", default=None,
+                        help="NHWC network weights and input (faster on CUDA tensor cores)")
+    parser.add_argument("--data-workers", type=positive_int, default=None, metavar="N",
+                        help="CPU threads drawing scenes ahead of each step (default: 1 on a CPU, else one per "
+                             "scene of a batch, leaving a core free); results do not depend on it")
 
 
 _TRAINING_FIELDS = {"steps": "steps", "data": "data", "batch": "batch", "crop": "crop_px", "lr": "learning_rate",
-                    "seed": "seed", "checkpoint_every": "checkpoint_every"}
+                    "seed": "seed", "checkpoint_every": "checkpoint_every", "precision": "precision",
+                    "channels_last": "channels_last"}
 
 
 def register(commands) -> None:
@@ -93,7 +102,8 @@ def _train(config: TrainConfig, arguments: argparse.Namespace) -> int:
 
     started = time.perf_counter()
     last = train(config, arguments.out, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
-                 random_vgg=arguments.random_vgg, device=compute_device(arguments.device))
+                 random_vgg=arguments.random_vgg, device=compute_device(arguments.device),
+                 data_workers=arguments.data_workers)
     if os.environ.get("RANK", "0") != "0":  # under torchrun only the first process reports
         return 0
     print(json.dumps({"run": str(arguments.out), "model": str(arguments.out / "model.pt"),

@@ -4,7 +4,7 @@ Format ``hdrcam-checkpoint/1`` (a dict, loadable with ``torch.load(weights_only=
   format, preset, profile, step, config (the TrainConfig as a dict), psf (3 x S x S float32 tensor: the PSF
   the network expects, unit sum per channel), network (state dict without the frozen VGG-19),
   doe (None, or {kind, feature_pitch_m, heights_m, parameters}), and for resumable run checkpoints also
-  optimizer, rng (numpy bit-generator state), noise_generator (torch generator state).
+  optimizer and noise_generator (torch generator state); scenes need no saved state (hdrcam.train.batches).
 Writes are atomic: a crash mid-write leaves the previous checkpoint intact.
 """
 

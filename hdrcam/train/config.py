@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 
+from hdrcam.errors import InputError
 from hdrcam.recon.losses import LossWeights
+
+PRECISIONS = ("float32", "bfloat16", "float16")  # of the network's forward in training; optics stay float32
 
 
 @dataclasses.dataclass
@@ -23,7 +26,13 @@ class TrainConfig:
     seed: int = 0
     checkpoint_every: int = 100
     init_checkpoint: str | None = None  # start the network from this checkpoint (fine-tuning)
+    precision: str = "float32"  # the network's forward: float32, or autocast to bfloat16 / float16 (CUDA)
+    channels_last: bool = False  # NHWC network weights and input (faster convolutions on CUDA tensor cores)
     weights: LossWeights = dataclasses.field(default_factory=LossWeights)
+
+    def __post_init__(self) -> None:
+        if self.precision not in PRECISIONS:
+            raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -32,7 +41,7 @@ class TrainConfig:
     def from_dict(cls, document: dict) -> "TrainConfig":
         values = dict(document)
         values["weights"] = LossWeights(**values.get("weights", {}))
-        return cls(**values)
+        return cls(**values)  # fields a run saved before they existed take their defaults
 
     def learning_rate_at(self, step: int, base: float) -> float:
         """Polynomial decay: base (1 - step / steps)^power."""

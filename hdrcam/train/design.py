@@ -8,7 +8,13 @@ the energy regulariser (94 % of the energy the bare lens keeps in the PSF centre
 A run folder holds: config.json, log.jsonl (one line per step), checkpoint.pt (resumable, every
 ``checkpoint_every`` steps and at the end), model.pt (the final network and PSF, no optimiser state),
 psf.exr, psf.png, loss.png and, for a trained DOE, heightmap.exr. ``resume`` continues from checkpoint.pt
-with the saved random states, so an interrupted run ends where an uninterrupted one would.
+with the saved noise state; each step's scenes are drawn from that step's own seed (hdrcam.train.batches), so
+an interrupted run ends where an uninterrupted one would.
+
+Speed on a GPU: scenes are drawn on ``data_workers`` CPU threads ahead of the step (hdrcam.train.batches);
+``precision`` bfloat16 / float16 runs the network's forward under autocast (float16 with loss scaling, CUDA
+only) while the optics, the sensor and the losses stay float32; ``channels_last`` stores the network's weights
+and input NHWC.
 
 Launched by ``torchrun --nproc_per_node K``, every process trains on its own batches and
 DistributedDataParallel averages the gradients (network and height map); only rank 0 writes.
@@ -16,6 +22,7 @@ DistributedDataParallel averages the gradients (network and height map); only ra
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import time
@@ -38,9 +45,10 @@ from hdrcam.optics.heightmap import save_heightmap
 from hdrcam.preview import line_plot, log_psf_rgb, radial_profile_plot, side_by_side
 from hdrcam.profiles import load_profile
 from hdrcam.recon.losses import reconstruction_loss
-from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.network import Reconstruction, ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import load_vgg19
+from hdrcam.train.batches import BatchStream
 from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
 from hdrcam.train.config import TrainConfig
 from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
@@ -49,13 +57,20 @@ from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
 class DesignModel(nn.Module):
     """Optics + network as one module, so DistributedDataParallel sees every trained parameter."""
 
-    def __init__(self, capture: OpticalCapture, network: ReconstructionNet):
+    def __init__(self, capture: OpticalCapture, network: ReconstructionNet, *, precision: str = "float32",
+                 channels_last: bool = False):
         super().__init__()
         self.capture, self.network = capture, network
+        self.autocast_dtype = None if precision == "float32" else getattr(torch, precision)
+        self.memory_format = torch.channels_last if channels_last else torch.contiguous_format
 
     def forward(self, radiance: torch.Tensor, generator: torch.Generator):
-        ldr, centre_fraction = self.capture(radiance, generator)
-        return self.network(ldr), centre_fraction, ldr
+        ldr, centre_fraction = self.capture(radiance, generator)  # float32: the optics need its precision
+        with torch.autocast(ldr.device.type, dtype=self.autocast_dtype, enabled=self.autocast_dtype is not None):
+            output = self.network(ldr.contiguous(memory_format=self.memory_format))
+        if self.autocast_dtype is not None:  # the losses (log, sqrt, Huber of values up to 2^8) in float32
+            output = Reconstruction(*(getattr(output, field.name).float() for field in dataclasses.fields(output)))
+        return output, centre_fraction, ldr
 
 
 def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
@@ -74,7 +89,9 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool)
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
         network.load_state_dict(state["network"], strict=False)
-    return DesignModel(capture, network)
+    if config.channels_last:
+        network = network.to(memory_format=torch.channels_last)
+    return DesignModel(capture, network, precision=config.precision, channels_last=config.channels_last)
 
 
 def _distributed() -> tuple[int, int]:
@@ -91,11 +108,13 @@ RUN_FILES = ("config.json", "log.jsonl", "checkpoint.pt", "model.pt", "psf.exr",
 
 def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: Path | None = None,
           random_vgg: bool = False, device: torch.device | None = None, quiet: bool = False,
-          stop_after: int | None = None) -> dict:
+          stop_after: int | None = None, data_workers: int | None = None) -> dict:
     """Run (or continue) a training run in ``out``; returns the last logged step.
 
     ``stop_after`` N: checkpoint and return after N steps of this call (training in time slices; continue
-    with ``resume``).
+    with ``resume``). ``data_workers``: CPU threads drawing scenes ahead of the step (the results do not
+    depend on it; default: one on a CPU, whose cores the step uses, else one per scene of a batch, leaving a
+    core free).
     """
     out = Path(out)
     rank, world = _distributed()
@@ -109,6 +128,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     checkpoint_path = out / "checkpoint.pt"
     if not resume and any((out / name).exists() for name in RUN_FILES):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    if config.precision == "float16" and device.type != "cuda":
+        raise InputError("--precision float16 needs a CUDA device (loss scaling); use bfloat16 or float32")
     if resume and not checkpoint_path.exists():
         raise InputError(f"--resume: {checkpoint_path} does not exist")
     check_destination_folder(out)  # before the model is built: an unusable --out fails at once
@@ -126,7 +147,6 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
          "base_lr": config.learning_rate},
         {"params": list(model.capture.parameters()), "lr": config.doe_learning_rate,
          "base_lr": config.doe_learning_rate}])
-    rng = np.random.default_rng([config.seed, rank])
     noise = torch.Generator(device=device).manual_seed(config.seed * 1000 + rank)
     start = 0
     if saved is not None:
@@ -134,10 +154,10 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         if saved["doe"] is not None:
             model.capture.simulator.heightmap.load_state_dict(saved["doe"]["parameters"])
         optimizer.load_state_dict(saved["optimizer"])
-        rng.bit_generator.state = saved["rng"]
         noise.set_state(saved["noise_generator"])
         start = int(saved["step"])
     trained = _maybe_distributed(model, world, device)
+    scaler = torch.amp.GradScaler(device.type, enabled=config.precision == "float16")
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         # a new run claims the folder with config.json (published without replacing: a second run started
@@ -146,15 +166,34 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         log_lines = _log_lines(out / "log.jsonl", start)
     progress = tqdm(total=min(config.steps, start + (stop_after or config.steps)) - start, desc=f"design {out.name}",
                     unit="step") if rank == 0 and not quiet else None
-    margin, last = model.capture.margin_px, {}
     end = config.steps if stop_after is None else min(config.steps, start + stop_after)
     model.train()
-    for step in range(start, end):
+    if data_workers is None:
+        data_workers = 1 if device.type == "cpu" else max(1, min(config.batch, (os.cpu_count() or 2) - 1))
+    batches = BatchStream(source, crop_px=config.crop_px, margin_px=model.capture.margin_px, batch=config.batch,
+                          run_seed=config.seed, rank=rank, start=start, workers=data_workers)
+    with batches:
+        last = _train_steps(config, out, model, trained, optimizer, scaler, batches, noise, range(start, end),
+                            rank, progress, log_lines if rank == 0 else None, device)
+    if progress:
+        progress.close()
+    if rank == 0:
+        _save_run(out, model, config, optimizer, noise, end, log_lines)
+        if end == config.steps:
+            _write_results(out, model, config, log_lines)
+    return last
+
+
+def _train_steps(config: TrainConfig, out: Path, model: DesignModel, trained: nn.Module, optimizer, scaler,
+                 batches: BatchStream, noise: torch.Generator, steps: range, rank: int, progress,
+                 log_lines: list[str] | None, device: torch.device) -> dict:
+    """The optimiser steps ``steps``; checkpoints every ``checkpoint_every`` (rank 0); the last step's log."""
+    margin, last = model.capture.margin_px, {}
+    for step in steps:
         began = time.perf_counter()
         for group in optimizer.param_groups:
             group["lr"] = config.learning_rate_at(step, group["base_lr"])
-        scenes = np.stack([source.training_scene(config.crop_px, margin, rng) for _ in range(config.batch)])
-        radiance = torch.from_numpy(scenes).permute(0, 3, 1, 2).to(device)
+        radiance = torch.from_numpy(batches.next_batch()).permute(0, 3, 1, 2).to(device, non_blocking=True)
         target = radiance[..., margin:margin + config.crop_px, margin:margin + config.crop_px]
         output, centre_fraction, ldr = trained(radiance, noise)
         terms = reconstruction_loss(output, target, config.weights, model.network.splitting.vgg, ldr.detach())
@@ -162,8 +201,9 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
             terms["energy"] = config.weights.energy * energy_regulariser(centre_fraction, model.capture.energy_target)
             terms["total"] = terms["total"] + terms["energy"]
         optimizer.zero_grad(set_to_none=True)
-        terms["total"].backward()
-        optimizer.step()
+        scaler.scale(terms["total"]).backward()
+        scaler.step(optimizer)
+        scaler.update()
         if not all(torch.isfinite(value) for value in terms.values()):
             raise InputError(f"training diverged at step {step + 1} (loss is not finite); lower --lr")
         last = {"step": step + 1, **{k: round(float(v.detach()), 6) for k, v in terms.items()},
@@ -176,20 +216,14 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
             if progress:
                 progress.set_postfix_str(f"loss {last['total']:.4f}", refresh=False)
                 progress.update()
-            if (step + 1) % config.checkpoint_every == 0 and step + 1 < end:
-                _save_run(out, model, config, optimizer, rng, noise, step + 1, log_lines)
-    if progress:
-        progress.close()
-    if rank == 0:
-        _save_run(out, model, config, optimizer, rng, noise, end, log_lines)
-        if end == config.steps:
-            _write_results(out, model, config, log_lines)
+            if (step + 1) % config.checkpoint_every == 0 and step + 1 < steps.stop:
+                _save_run(out, model, config, optimizer, noise, step + 1, log_lines)
     return last
 
 
 def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig) -> None:
     """Refuse to resume a run with other settings (seed, PSF, learning rate, ...): only ``steps`` may grow."""
-    wanted = config.as_dict()
+    wanted, saved = config.as_dict(), TrainConfig.from_dict(saved).as_dict()
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
         if saved.get(key) != wanted.get(key):
             raise InputError(f"--resume: {checkpoint_path} was started with {key} {saved.get(key)!r}, this run asks "
@@ -225,12 +259,12 @@ def checkpoint_state(model: DesignModel, config: TrainConfig, step: int) -> dict
             "psf": psf.detach().cpu().float().contiguous(), "network": model.network.trainable_state(), "doe": doe}
 
 
-def _save_run(out: Path, model: DesignModel, config: TrainConfig, optimizer, rng, noise, step: int,
+def _save_run(out: Path, model: DesignModel, config: TrainConfig, optimizer, noise, step: int,
               log_lines: list[str]) -> None:
     write_text_atomic(out / "log.jsonl", "".join(line + "\n" for line in log_lines), overwrite=True)
     state = checkpoint_state(model, config, step)
     save_checkpoint(out / "checkpoint.pt", {**state, "optimizer": optimizer.state_dict(),
-                                            "rng": rng.bit_generator.state, "noise_generator": noise.get_state()})
+                                            "noise_generator": noise.get_state()})
 
 
 def _write_results(out: Path, model: DesignModel, config: TrainConfig, log_lines: list[str]) -> None:

@@ -98,7 +98,7 @@ def test_resume_continues_exactly_where_an_interrupted_run_would_be(tmp_path):
     straight = train(_tiny(), tmp_path / "straight", quiet=True)
     train(_tiny(), tmp_path / "resumed", quiet=True, stop_after=3)  # interrupted after step 3
     assert not (tmp_path / "resumed" / "model.pt").exists()
-    resumed = train(_tiny(), tmp_path / "resumed", resume=True, quiet=True)
+    resumed = train(_tiny(), tmp_path / "resumed", resume=True, quiet=True, data_workers=2)
     for key in ("total", "fusion", "energy"):
         assert resumed[key] == pytest.approx(straight[key], rel=1e-5)
     a, b = read_checkpoint(tmp_path / "straight" / "model.pt"), read_checkpoint(tmp_path / "resumed" / "model.pt")
@@ -131,3 +131,29 @@ def test_damaged_checkpoints_are_one_line_errors(tmp_path):
         read_checkpoint(tmp_path / "foreign.pt")
     with pytest.raises(InputError, match="does not exist"):
         read_checkpoint(tmp_path / "missing.pt")
+
+
+def test_a_run_saved_before_the_precision_options_resumes_with_their_defaults(tmp_path):
+    train(_tiny(steps=2), tmp_path / "run", quiet=True, stop_after=1)
+    checkpoint = tmp_path / "run" / "checkpoint.pt"
+    state = read_checkpoint(checkpoint)
+    for key in ("precision", "channels_last"):
+        del state["config"][key]
+    torch.save(state, checkpoint)
+    assert train(_tiny(steps=2), tmp_path / "run", resume=True, quiet=True)["step"] == 2
+
+
+def test_bfloat16_autocast_and_channels_last_train_the_network_in_float32_losses(tmp_path):
+    reference = train(_tiny(steps=2, doe=None, psf="dirac"), tmp_path / "fp32", quiet=True)
+    mixed = train(_tiny(steps=2, doe=None, psf="dirac", precision="bfloat16", channels_last=True),
+                  tmp_path / "bf16", quiet=True)
+    assert np.isfinite(mixed["total"])
+    assert mixed["total"] == pytest.approx(reference["total"], rel=0.05)  # same batches, bf16 rounding only
+    assert load_model(tmp_path / "bf16" / "model.pt").network.splitting is not None
+
+
+def test_float16_needs_cuda_and_unknown_precisions_are_refused(tmp_path):
+    with pytest.raises(InputError, match="needs a CUDA device"):
+        train(_tiny(precision="float16"), tmp_path / "run", quiet=True, device=torch.device("cpu"))
+    with pytest.raises(InputError, match="precision must be one of"):
+        _tiny(precision="float8")
