@@ -8,8 +8,8 @@ with no random state to save.
 Why threads ahead of the step: a scene is drawn on the CPU (a procedural night scene, or a crop of a
 photograph with its augmentation), and at the paper's scale (512 px crops with the A7 PSF's 127 px margins)
 one takes 0.14 s (photograph) to 0.58 s (night scene) on this project's CPU - seconds per batch, many times a
-GPU step. Drawing runs in numpy and OpenCV, which release the GIL, so threads overlap it with each other and
-with the step (measured: 2 threads draw 1.6x as fast as one on a 2-core machine under load).
+GPU step. Drawing runs in numpy and OpenCV, which release the GIL, so on a machine with free cores (a GPU
+machine has 16) threads overlap it with each other and with the step; tools/bench_batches.py measures it.
 """
 
 from __future__ import annotations
