@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hdrcam.cli.arguments import compute_device, positive_float, positive_int
+from hdrcam.cli.arguments import compute_device, non_negative_int, positive_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.recon.presets import PRESETS
 from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
@@ -42,9 +42,10 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
                              "GPU, float16 CUDA only; optics and losses stay float32)")
     parser.add_argument("--channels-last", action="store_true", default=None,
                         help="NHWC network weights and input (faster on CUDA tensor cores)")
-    parser.add_argument("--data-workers", type=positive_int, default=None, metavar="N",
-                        help="CPU threads drawing scenes ahead of each step (default: 1 on a CPU, else one per "
-                             "scene of a batch, leaving a core free); results do not depend on it")
+    parser.add_argument("--data-workers", type=non_negative_int, default=None, metavar="N",
+                        help="CPU threads drawing scenes ahead of each step (default: 0 on a CPU, drawing each "
+                             "batch when the step asks, else one per scene of a batch, leaving a core free); "
+                             "results do not depend on it")
 
 
 _TRAINING_FIELDS = {"steps": "steps", "data": "data", "batch": "batch", "crop": "crop_px", "lr": "learning_rate",

@@ -10,6 +10,8 @@ photograph with its augmentation), and at the paper's scale (512 px crops with t
 one takes 0.14 s (photograph) to 0.58 s (night scene) on this project's CPU - seconds per batch, many times a
 GPU step. Drawing runs in numpy and OpenCV, which release the GIL, so on a machine with free cores (a GPU
 machine has 16) threads overlap it with each other and with the step; tools/bench_batches.py measures it.
+On a CPU the step itself uses every core, and a drawing thread beside it slowed a 2-core fine-tune by half
+(measured), so there ``workers`` 0 draws each batch when it is asked for, in the calling thread.
 """
 
 from __future__ import annotations
@@ -31,16 +33,16 @@ def scene_seed(run_seed: int, rank: int, step: int, index: int) -> np.random.See
 
 class BatchStream:
     """Batches (batch, crop + 2 margin, crop + 2 margin, 3) float32 of steps ``start``, ``start`` + 1, ...,
-    drawn by ``workers`` threads up to PREFETCH_BATCHES ahead. Use as a context manager; ``next_batch()``
-    returns the batches in step order."""
+    drawn by ``workers`` threads up to PREFETCH_BATCHES ahead (0: none, each batch drawn when asked for). Use
+    as a context manager; ``next_batch()`` returns the batches in step order."""
 
     def __init__(self, source: SceneSource, *, crop_px: int, margin_px: int, batch: int, run_seed: int,
                  rank: int = 0, start: int = 0, workers: int = 1):
-        if workers < 1:
-            raise ValueError(f"workers must be at least 1, got {workers}")
+        if workers < 0:
+            raise ValueError(f"workers must be 0 or more, got {workers}")
         self.source, self.crop_px, self.margin_px, self.batch = source, crop_px, margin_px, batch
         self.run_seed, self.rank, self.next_step = run_seed, rank, start
-        self.pool = ThreadPoolExecutor(workers, thread_name_prefix="hdrcam-batch")
+        self.pool = ThreadPoolExecutor(workers, thread_name_prefix="hdrcam-batch") if workers else None
         self.pending: deque[list[Future]] = deque()
 
     def __enter__(self) -> "BatchStream":
@@ -50,7 +52,8 @@ class BatchStream:
         for futures in self.pending:
             for future in futures:
                 future.cancel()
-        self.pool.shutdown(wait=True)
+        if self.pool:
+            self.pool.shutdown(wait=True)
 
     def _scene(self, step: int, index: int) -> np.ndarray:
         rng = np.random.default_rng(scene_seed(self.run_seed, self.rank, step, index))
@@ -62,6 +65,9 @@ class BatchStream:
 
     def next_batch(self) -> np.ndarray:
         """The next step's batch (its scenes' failures are raised here)."""
+        if self.pool is None:
+            self.next_step += 1
+            return np.stack([self._scene(self.next_step - 1, index) for index in range(self.batch)])
         while len(self.pending) < PREFETCH_BATCHES + 1:
             self._submit()
         futures = self.pending.popleft()

@@ -113,8 +113,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
 
     ``stop_after`` N: checkpoint and return after N steps of this call (training in time slices; continue
     with ``resume``). ``data_workers``: CPU threads drawing scenes ahead of the step (the results do not
-    depend on it; default: one on a CPU, whose cores the step uses, else one per scene of a batch, leaving a
-    core free).
+    depend on it; default: none on a CPU, whose cores the step uses - each batch is drawn when the step asks -
+    else one per scene of a batch, leaving a core free).
     """
     out = Path(out)
     rank, world = _distributed()
@@ -169,7 +169,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     end = config.steps if stop_after is None else min(config.steps, start + stop_after)
     model.train()
     if data_workers is None:
-        data_workers = 1 if device.type == "cpu" else max(1, min(config.batch, (os.cpu_count() or 2) - 1))
+        data_workers = 0 if device.type == "cpu" else max(1, min(config.batch, (os.cpu_count() or 2) - 1))
     batches = BatchStream(source, crop_px=config.crop_px, margin_px=model.capture.margin_px, batch=config.batch,
                           run_seed=config.seed, rank=rank, start=start, workers=data_workers)
     with batches:

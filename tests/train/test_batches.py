@@ -16,8 +16,10 @@ def _batches(workers: int, start: int, count: int, seed: int = 0) -> list[np.nda
 def test_a_step_draws_the_same_scenes_on_any_number_of_threads_and_after_a_resume():
     one_thread = _batches(workers=1, start=0, count=5)
     two_threads = _batches(workers=2, start=0, count=5)
+    on_demand = _batches(workers=0, start=0, count=5)
     resumed = _batches(workers=2, start=3, count=2)  # a run resumed at step 3
     assert all(np.array_equal(a, b) for a, b in zip(one_thread, two_threads))
+    assert all(np.array_equal(a, b) for a, b in zip(one_thread, on_demand))
     assert all(np.array_equal(a, b) for a, b in zip(one_thread[3:], resumed))
     assert one_thread[0].shape == (3, 40, 40, 3) and one_thread[0].dtype == np.float32
 
@@ -34,8 +36,10 @@ def test_a_failing_draw_is_raised_by_next_batch_and_workers_must_be_positive():
         def training_scene(self, size_px, margin_px, rng):
             raise OSError("photograph unreadable")
 
-    with BatchStream(Broken("procedural"), crop_px=32, margin_px=4, batch=2, run_seed=0) as stream:
-        with pytest.raises(OSError, match="unreadable"):
-            stream.next_batch()
-    with pytest.raises(ValueError, match="at least 1"):
-        BatchStream(SceneSource("procedural"), crop_px=32, margin_px=4, batch=2, run_seed=0, workers=0)
+    for workers in (0, 1):
+        with BatchStream(Broken("procedural"), crop_px=32, margin_px=4, batch=2, run_seed=0,
+                         workers=workers) as stream:
+            with pytest.raises(OSError, match="unreadable"):
+                stream.next_batch()
+    with pytest.raises(ValueError, match="0 or more"):
+        BatchStream(SceneSource("procedural"), crop_px=32, margin_px=4, batch=2, run_seed=0, workers=-1)
