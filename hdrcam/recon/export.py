@@ -21,7 +21,8 @@ from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import Reconstruction, ReconstructionNet
 
-EXPORT_SIZE_PX = 256  # the example frame traced for export
+EXPORT_SIZE_PX = 256  # the example frame traced for the TorchScript export
+ONNX_EXAMPLE_PX = 64  # the example frame traced for ONNX (small: tracing is a forward; H and W stay free)
 
 
 class HdrOnly(nn.Module):
@@ -47,7 +48,7 @@ def export_torchscript(network: ReconstructionNet, path: Path, *, overwrite: boo
 
 def onnx_bytes(network: ReconstructionNet) -> bytes:
     """The network's HDR output as a serialised ONNX model (input "ldr", output "hdr", H and W free)."""
-    example = torch.rand(1, 3, EXPORT_SIZE_PX, EXPORT_SIZE_PX)
+    example = torch.rand(1, 3, ONNX_EXAMPLE_PX, ONNX_EXAMPLE_PX)
     serialised = io.BytesIO()  # in memory: a full disk then fails in write_bytes_atomic, with its cause
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the exporter's notes on the size check and InstanceNorm's mode
