@@ -198,7 +198,7 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
                       progress=None, regions: list[Region] | None = None) -> tuple[np.ndarray, TileReport]:
     """H x W x 3 LDR frame in [0, 1] -> H x W x 3 float32 HDR estimate and what was run.
 
-    The windows run through :func:`hdrcam.recon.cpu_forward.hdr_forward`: onnxruntime for a ReconstructionNet
+    The windows run through :func:`hdrcam.recon.cpu_forward.hdr_forward`: OpenVINO for a ReconstructionNet
     in float32 on the CPU, the PyTorch forward otherwise.
 
     ``regions``: the frame's :func:`plan_regions` with the same settings, when the caller has them already."""

@@ -1,4 +1,4 @@
-"""The onnxruntime forward reconstruct_frame runs on a CPU equals the PyTorch forward, and falls back visibly."""
+"""The OpenVINO forward reconstruct_frame runs on a CPU equals the PyTorch forward, and falls back visibly."""
 
 import math
 
@@ -7,12 +7,12 @@ import pytest
 import torch
 
 from hdrcam.recon import cpu_forward
-from hdrcam.recon.cpu_forward import OnnxForward, hdr_forward
+from hdrcam.recon.cpu_forward import CompiledForward, hdr_forward
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset
 from hdrcam.recon.tiling import reconstruct_frame
 
-pytest.importorskip("onnxruntime")
+pytest.importorskip("openvino")
 CPU = torch.device("cpu")
 
 
@@ -25,12 +25,12 @@ def _trained_like_network() -> ReconstructionNet:
     return network
 
 
-def test_onnxruntime_forward_equals_the_pytorch_forward():
+def test_compiled_forward_equals_the_pytorch_forward():
     network = _trained_like_network()
     ldr = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(1))
     ldr[:, :, 20:30, 40:50] = 1.0  # a clipped patch, so the highlight stage has work
     forward = hdr_forward(network, CPU, torch.float32)
-    assert isinstance(forward, OnnxForward)
+    assert isinstance(forward, CompiledForward)
     with torch.no_grad():
         expected = network(ldr).hdr
     optimised = forward(ldr)
@@ -39,7 +39,7 @@ def test_onnxruntime_forward_equals_the_pytorch_forward():
     assert torch.allclose(optimised, expected, rtol=1e-4, atol=1e-4)
 
 
-def test_session_is_reused_until_the_weights_change():
+def test_compiled_forward_is_reused_until_the_weights_change():
     network = _trained_like_network()
     first = hdr_forward(network, CPU, torch.float32)
     assert hdr_forward(network, CPU, torch.float32) is first
@@ -50,7 +50,7 @@ def test_session_is_reused_until_the_weights_change():
 
 def test_other_precisions_run_the_pytorch_forward():
     network = _trained_like_network()
-    assert not isinstance(hdr_forward(network, CPU, torch.float64), OnnxForward)
+    assert not isinstance(hdr_forward(network, CPU, torch.float64), CompiledForward)
 
 
 def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch):
@@ -59,10 +59,10 @@ def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch)
     optimised, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
 
     def broken(*_arguments):
-        raise RuntimeError("no session here\nsecond line")
+        raise RuntimeError("no compiler here\nsecond line")
 
-    monkeypatch.setattr(cpu_forward, "OnnxForward", broken)
-    with pytest.warns(UserWarning, match="onnxruntime forward unavailable .*no session here.*plain PyTorch"):
+    monkeypatch.setattr(cpu_forward, "CompiledForward", broken)
+    with pytest.warns(UserWarning, match="OpenVINO forward unavailable .*no compiler here.*plain PyTorch"):
         plain, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
     assert not np.array_equal(plain, frame)
     np.testing.assert_allclose(optimised, plain, rtol=1e-4, atol=1e-4)
