@@ -46,8 +46,10 @@ class CompiledForward:
         self.threads = threads
         self.weights = [value.detach().clone() for value in network.state_dict().values()]
         core = openvino.Core()
+        # threads not pinned to cores: as fast on an idle CPU, less slowed when other processes share the cores
         self.compiled = core.compile_model(core.read_model(onnx_bytes(network)), "CPU", {
-            "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY"})
+            "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
+            "ENABLE_CPU_PINNING": False})
         self.request = self.compiled.create_infer_request()
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
