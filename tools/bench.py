@@ -19,7 +19,7 @@ and size.
 On a machine shared with other jobs, OpenMP threads that outnumber the free cores wait on each other (one
 forward of ``fast`` at 128^2 took 2.5 s on 2 threads and 0.21 s on 1 with 4 other processes running):
 the output records the load average; measure with --threads 1 there.
-Each run is put, dated, above the earlier runs in --out.
+Each run is put, dated and with its commit, above the earlier runs in --out.
 Usage: python tools/bench.py [--repeats 3] [--threads N] [--out tools/results/bench-cpu.md]
 """
 
@@ -219,7 +219,9 @@ def main() -> None:
         print(lines[-1], flush=True)
     lines += ["", f"Load average (1 min) {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on "
                   f"{cores()} cores."]
-    text = "\n".join([f"## {time.strftime('%Y-%m-%d %H:%M')}", "",
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            cwd=Path(__file__).parent).stdout.strip() or "unknown"
+    text = "\n".join([f"## {time.strftime('%Y-%m-%d %H:%M')} (commit {commit})", "",
                        f"`python tools/bench.py --repeats {arguments.repeats} --threads {arguments.threads}`", "",
                        *lines]) + "\n"
     print(text)
