@@ -5,17 +5,21 @@ and size.
    the fp32 matmul peak (2048^2 matmul, best of 5), the copy bandwidth (torch copy of 256 MiB, best of 5,
    bytes read + written), the forward's FLOPs (2 x multiply-adds of every convolution, hdrcam.recon.flops) and
    its memory traffic (every module's inputs, outputs and parameters read or written once: a lower bound).
-   Bound = max(FLOPs / peak, traffic / bandwidth); the forward is timed in NCHW and channels_last on
-   --threads torch threads (default: the cores; peak and bandwidth on the same threads).
+   Bound = max(FLOPs / peak, traffic / bandwidth); the forward is timed as the product runs it
+   (hdrcam.recon.cpu_forward: OpenVINO, compiled once before timing; its build time is listed) and as PyTorch's
+   eager forward in NCHW and channels_last, on --threads threads (default: the cores; peak and bandwidth on
+   the same threads), each row with the 1-minute load average at its end.
 2. Speed-accuracy table: each preset x precision x size in a fresh process (peak RSS of that process minus
    its RSS before the first forward, Linux's resettable peak); time = median of --repeats forwards after a warm-up (1 for paper);
-   PSNR (dB, peak 2^8 as the paper's linear PSNR) of the output against the same network in fp32, on a
+   float32 runs the product's forward (hdrcam.recon.cpu_forward), other precisions PyTorch's;
+   PSNR (dB, peak 2^8 as the paper's linear PSNR) of the output against PyTorch's fp32 forward, on a
    procedural night scene captured at 1.5 % clipped pixels. ``fast`` is the shipped checkpoint; ``lite`` and
    ``paper`` have seeded random weights (paper with random VGG-19 features). bf16 and fp16 run only at 128^2:
    on this CPU they are many times slower than fp32 (REFERENCE.md sec. 7).
 On a machine shared with other jobs, OpenMP threads that outnumber the free cores wait on each other (one
 forward of ``fast`` at 128^2 took 2.5 s on 2 threads and 0.21 s on 1 with 4 other processes running):
 the output records the load average; measure with --threads 1 there.
+Each run is put, dated and with its commit, above the earlier runs in --out.
 Usage: python tools/bench.py [--repeats 3] [--threads N] [--out tools/results/bench-cpu.md]
 """
 
@@ -124,27 +128,31 @@ def _status_mb(field: str) -> float:
 
 def worker(name: str, precision: str, size_px: int, repeats: int, threads: int) -> dict:
     """One configuration in this (fresh) process."""
+    from hdrcam.recon.cpu_forward import hdr_forward
+
     torch.set_num_threads(threads)
     network, frame = build(name), test_frame(size_px)
     dtype = getattr(torch, precision)
     reference_network = copy.deepcopy(network) if dtype != torch.float32 else network
     network, image = network.to(dtype), frame.to(dtype)
+    forward = hdr_forward(network, torch.device("cpu"), dtype)
     Path("/proc/self/clear_refs").write_text("5")  # resets the peak RSS to the current RSS (Linux)
     before = _status_mb("VmRSS")
     times = []
     with torch.no_grad():
         for _ in range(1 + (1 if name == "paper" or dtype != torch.float32 else repeats)):
             started = time.perf_counter()
-            output = network(image).hdr.float()
+            output = forward(image).float()
             times.append(time.perf_counter() - started)
         peak_mb = _status_mb("VmHWM") - before
-        reference = reference_network(frame).hdr if dtype != torch.float32 else output
+        reference = reference_network(frame).hdr
     error = float(torch.mean((output - reference) ** 2))
     psnr = float("inf") if error == 0 else 10 * np.log10(PEAK_RADIANCE ** 2 / error)
     return {"seconds": statistics.median(times[1:]), "memory_mb": peak_mb, "psnr_db": psnr}
 
 
 def roofline(repeats: int, threads: int) -> list[str]:
+    from hdrcam.recon.cpu_forward import hdr_forward
     from hdrcam.recon.flops import forward_gflops
 
     torch.set_num_threads(threads)
@@ -153,22 +161,34 @@ def roofline(repeats: int, threads: int) -> list[str]:
     flops = forward_gflops(network, image) * 1e9
     traffic = traffic_bytes(network, image)
     bound = max(flops / peak, traffic / bandwidth)
+    started = time.perf_counter()
+    product = hdr_forward(network, torch.device("cpu"), torch.float32)
+    build_seconds = time.perf_counter() - started
+    channels_last = copy.deepcopy(network).to(memory_format=torch.channels_last)
+    paths = [("OpenVINO (the product's, hdrcam.recon.cpu_forward)", product, image),
+             ("PyTorch eager, NCHW", lambda x: network(x).hdr, image),
+             ("PyTorch eager, channels_last", lambda x: channels_last(x).hdr,
+              image.contiguous(memory_format=torch.channels_last))]
+    with torch.no_grad():
+        reference = network(image).hdr
     lines = [f"Machine: {platform.processor() or platform.machine()}, {cores()} cores, torch {torch.__version__} "
              f"({torch.get_num_threads()} threads); fp32 matmul peak {peak / 1e9:.0f} GFLOP/s, copy bandwidth "
              f"{bandwidth / 1e9:.1f} GB/s (measured in this run).", "",
              f"Default network (`fast`, the shipped checkpoint) at 512^2: {flops / 1e9:.1f} GFLOP -> "
              f"{flops / peak:.3f} s at the matmul peak; traffic >= {traffic / 1e9:.2f} GB -> "
-             f"{traffic / bandwidth:.3f} s at the copy bandwidth; roofline bound {bound:.3f} s.", "",
-             "| layout | forward @512^2 (s) | x roofline bound | GFLOP/s |", "|---|---|---|---|"]
-    for layout in ("NCHW", "channels_last"):
-        model, x = network, image
-        if layout == "channels_last":
-            model = network.to(memory_format=torch.channels_last)
-            x = image.contiguous(memory_format=torch.channels_last)
+             f"{traffic / bandwidth:.3f} s at the copy bandwidth; roofline bound {bound:.3f} s. The product's "
+             f"OpenVINO forward took {build_seconds:.2f} s to build (ONNX export, compilation, probe check; once "
+             "per process and set of weights).", "",
+             "| forward | @512^2 (s) | x roofline bound | GFLOP/s | vs PyTorch NCHW: PSNR (dB), max abs diff "
+             "| load (1 min) |", "|---|---|---|---|---|---|"]
+    for label, forward, x in paths:
         with torch.no_grad():
-            times = [best_seconds(lambda: model(x), repeats=1) for _ in range(repeats)]
-        seconds = statistics.median(times)
-        lines.append(f"| {layout} | {seconds:.3f} | {seconds / bound:.2f} | {flops / seconds / 1e9:.0f} |")
+            times = [best_seconds(lambda: forward(x), repeats=1) for _ in range(repeats)]
+            error = forward(x) - reference
+        seconds, mse = statistics.median(times), float(torch.mean(error ** 2))
+        psnr = "identical" if mse == 0 else f"{10 * np.log10(PEAK_RADIANCE ** 2 / mse):.1f}"
+        lines.append(f"| {label} | {seconds:.3f} | {seconds / bound:.2f} | {flops / seconds / 1e9:.0f} | "
+                     f"{psnr}, {float(error.abs().max()):.1e} | {os.getloadavg()[0]:.1f} |")
         print(lines[-1], flush=True)
     return lines
 
@@ -186,8 +206,8 @@ def main() -> None:
         return
     load_before = os.getloadavg()[0]
     lines = roofline(arguments.repeats, arguments.threads)
-    lines += ["", "| preset | precision | size | forward (s) | peak memory (MB) | PSNR vs fp32 (dB) |",
-              "|---|---|---|---|---|---|"]
+    lines += ["", "| preset | precision | size | forward (s) | peak memory (MB) | PSNR vs PyTorch fp32 (dB) | "
+                  "load (1 min) |", "|---|---|---|---|---|---|---|"]
     for name, precision, size in CONFIGS:
         done = subprocess.run([sys.executable, __file__, "--repeats", str(arguments.repeats), "--threads",
                                str(arguments.threads), "--worker", name, precision, str(size)],
@@ -195,15 +215,19 @@ def main() -> None:
         result = json.loads(done.stdout.strip().splitlines()[-1])
         psnr = "identical" if result["psnr_db"] == float("inf") else f"{result['psnr_db']:.1f}"
         lines.append(f"| {name} | {precision} | {size}^2 | {result['seconds']:.3f} | {result['memory_mb']:.0f} | "
-                     f"{psnr if precision != 'float32' else 'reference'} |")
+                     f"{psnr} | {os.getloadavg()[0]:.1f} |")
         print(lines[-1], flush=True)
     lines += ["", f"Load average (1 min) {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on "
                   f"{cores()} cores."]
-    text = "\n".join([f"`python tools/bench.py --repeats {arguments.repeats} --threads {arguments.threads}`", "",
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            cwd=Path(__file__).parent).stdout.strip() or "unknown"
+    text = "\n".join([f"## {time.strftime('%Y-%m-%d %H:%M')} (commit {commit})", "",
+                       f"`python tools/bench.py --repeats {arguments.repeats} --threads {arguments.threads}`", "",
                        *lines]) + "\n"
     print(text)
     arguments.out.parent.mkdir(parents=True, exist_ok=True)
-    arguments.out.write_text(text)
+    earlier = arguments.out.read_text() if arguments.out.exists() else ""
+    arguments.out.write_text(text + ("\n" + earlier if earlier else ""))  # newest first, earlier runs kept
 
 
 if __name__ == "__main__":

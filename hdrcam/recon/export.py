@@ -21,7 +21,8 @@ from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import Reconstruction, ReconstructionNet
 
-EXPORT_SIZE_PX = 256  # the example frame traced for export
+EXPORT_SIZE_PX = 256  # the example frame traced for the TorchScript export
+ONNX_EXAMPLE_PX = 64  # the example frame traced for ONNX (small: tracing is a forward; H and W stay free)
 
 
 class HdrOnly(nn.Module):
@@ -45,20 +46,25 @@ def export_torchscript(network: ReconstructionNet, path: Path, *, overwrite: boo
     return write_bytes_atomic(Path(path), serialised.getvalue(), overwrite=overwrite)
 
 
-def export_onnx(network: ReconstructionNet, path: Path, metadata: dict[str, str], *,
-                overwrite: bool = False) -> Path:
-    try:
-        import onnx
-    except ImportError as error:
-        raise InputError("ONNX export needs the onnx package: pip install 'hdrcam[export]'") from error
-    example = torch.rand(1, 3, EXPORT_SIZE_PX, EXPORT_SIZE_PX)
+def onnx_bytes(network: ReconstructionNet) -> bytes:
+    """The network's HDR output as a serialised ONNX model (input "ldr", output "hdr", H and W free)."""
+    example = torch.rand(1, 3, ONNX_EXAMPLE_PX, ONNX_EXAMPLE_PX)
     serialised = io.BytesIO()  # in memory: a full disk then fails in write_bytes_atomic, with its cause
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the exporter's notes on the size check and InstanceNorm's mode
         torch.onnx.export(HdrOnly(network.eval()), (example,), serialised, input_names=["ldr"],
                           output_names=["hdr"], dynamo=False, opset_version=17,
                           dynamic_axes={"ldr": {2: "height", 3: "width"}, "hdr": {2: "height", 3: "width"}})
-    model = onnx.load_from_string(serialised.getvalue())
+    return serialised.getvalue()
+
+
+def export_onnx(network: ReconstructionNet, path: Path, metadata: dict[str, str], *,
+                overwrite: bool = False) -> Path:
+    try:
+        import onnx
+    except ImportError as error:
+        raise InputError("ONNX export needs the onnx package: pip install 'hdrcam[export]'") from error
+    model = onnx.load_from_string(onnx_bytes(network))
     for key, value in metadata.items():
         model.metadata_props.add(key=key, value=value)
     return write_bytes_atomic(Path(path), model.SerializeToString(), overwrite=overwrite)

@@ -28,6 +28,7 @@ import scipy.ndimage
 import torch
 
 from hdrcam.limits import check_memory
+from hdrcam.recon.cpu_forward import hdr_forward
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
@@ -152,9 +153,9 @@ def _reflected(indices: np.ndarray, length: int) -> np.ndarray:
     return np.where(folded >= length, period - folded, folded)
 
 
-def _run_region(network, ldr: np.ndarray, region: Region, halo_px: int, blend: int, device, dtype,
+def _run_region(forward, ldr: np.ndarray, region: Region, halo_px: int, blend: int, device, dtype,
                 progress) -> np.ndarray:
-    """The network's output over the region (region height x width x 3), windows blended."""
+    """``forward``'s HDR output over the region (region height x width x 3), windows blended."""
     window_height, window_width = region.core_height + 2 * halo_px, region.core_width + 2 * halo_px
     weight = np.outer(_ramp(window_height, halo_px, blend), _ramp(window_width, halo_px, blend))[..., None]
     span_height = region.rows * region.core_height + 2 * halo_px
@@ -171,7 +172,7 @@ def _run_region(network, ldr: np.ndarray, region: Region, halo_px: int, blend: i
             patch = np.ascontiguousarray(ldr[rows[:, None], columns[None, :]], np.float32)
             with torch.no_grad():
                 tensor = torch.from_numpy(patch).permute(2, 0, 1)[None].to(device=device, dtype=dtype)
-                output = network(tensor).hdr[0].permute(1, 2, 0).float().cpu().numpy()
+                output = forward(tensor)[0].permute(1, 2, 0).float().cpu().numpy()
             total[top:top + window_height, left:left + window_width] += output * weight
             weights[top:top + window_height, left:left + window_width] += weight
             if progress:
@@ -197,6 +198,9 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
                       progress=None, regions: list[Region] | None = None) -> tuple[np.ndarray, TileReport]:
     """H x W x 3 LDR frame in [0, 1] -> H x W x 3 float32 HDR estimate and what was run.
 
+    The windows run through :func:`hdrcam.recon.cpu_forward.hdr_forward`: OpenVINO for a ReconstructionNet
+    in float32 on the CPU, the PyTorch forward otherwise.
+
     ``regions``: the frame's :func:`plan_regions` with the same settings, when the caller has them already."""
     started = time.perf_counter()
     height, width = ldr.shape[:2]
@@ -207,9 +211,10 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
                                halo_px=halo_px)
     blend = _blend(core_px, halo_px)
     hdr = frame.copy()
-    network = network.to(device=device, dtype=dtype).eval() if regions else network
+    if regions:
+        forward = hdr_forward(network.to(device=device, dtype=dtype).eval(), device, dtype)
     for region in regions:
-        output = _run_region(network, frame, region, halo_px, blend, device, dtype, progress)
+        output = _run_region(forward, frame, region, halo_px, blend, device, dtype, progress)
         fade = np.outer(_fade(region.height, region.top, height, blend),
                         _fade(region.width, region.left, width, blend))[..., None]
         inside = (slice(region.top, region.top + region.height), slice(region.left, region.left + region.width))

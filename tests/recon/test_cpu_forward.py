@@ -1,0 +1,68 @@
+"""The OpenVINO forward reconstruct_frame runs on a CPU equals the PyTorch forward, and falls back visibly."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from hdrcam.recon import cpu_forward
+from hdrcam.recon.cpu_forward import CompiledForward, hdr_forward
+from hdrcam.recon.network import ReconstructionNet
+from hdrcam.recon.presets import preset
+from hdrcam.recon.tiling import reconstruct_frame
+
+pytest.importorskip("openvino")
+CPU = torch.device("cpu")
+
+
+def _trained_like_network() -> ReconstructionNet:
+    """The fast preset with seeded weights, the fusion exit non-zero (at zero init it hides the other stages)."""
+    torch.manual_seed(0)
+    network = ReconstructionNet(preset("fast")).eval()
+    with torch.no_grad():
+        network.fusion.exit.weight.normal_(0.0, 0.05)
+    return network
+
+
+def test_compiled_forward_equals_the_pytorch_forward():
+    network = _trained_like_network()
+    ldr = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(1))
+    ldr[:, :, 20:30, 40:50] = 1.0  # a clipped patch, so the highlight stage has work
+    forward = hdr_forward(network, CPU, torch.float32)
+    assert isinstance(forward, CompiledForward)
+    with torch.no_grad():
+        expected = network(ldr).hdr
+    optimised = forward(ldr)
+    error = float(torch.mean((optimised - expected) ** 2))
+    assert error == 0.0 or 10 * math.log10(256.0 ** 2 / error) > 100.0  # PSNR at peak 2^8, as tools/bench.py
+    assert torch.allclose(optimised, expected, rtol=1e-4, atol=1e-4)
+
+
+def test_compiled_forward_is_reused_until_the_weights_change():
+    network = _trained_like_network()
+    first = hdr_forward(network, CPU, torch.float32)
+    assert hdr_forward(network, CPU, torch.float32) is first
+    with torch.no_grad():
+        network.splitting.exit.bias.add_(0.1)
+    assert hdr_forward(network, CPU, torch.float32) is not first
+
+
+def test_other_precisions_run_the_pytorch_forward():
+    network = _trained_like_network()
+    assert not isinstance(hdr_forward(network, CPU, torch.float64), CompiledForward)
+
+
+def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch):
+    frame = np.random.default_rng(2).uniform(0.0, 1.0, (48, 48, 3)).astype(np.float32)
+    settings = dict(psf_radius_px=4, adaptive=False, core_px=32, halo_px=8)
+    optimised, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
+
+    def broken(*_arguments):
+        raise RuntimeError("no compiler here\nsecond line")
+
+    monkeypatch.setattr(cpu_forward, "CompiledForward", broken)
+    with pytest.warns(UserWarning, match="OpenVINO forward unavailable .*no compiler here.*plain PyTorch"):
+        plain, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
+    assert not np.array_equal(plain, frame)
+    np.testing.assert_allclose(optimised, plain, rtol=1e-4, atol=1e-4)
