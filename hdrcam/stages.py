@@ -13,6 +13,7 @@ imported before a function runs (torch only for design, finetune and evaluate).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,7 +31,8 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
                     iso: float = 100.0, auto: bool = False, roi: tuple[int, int, int, int] | None = None,
                     darks: bool = False, scene: str = "point", psf: str = "doe", size_px: tuple[int, int] | None = None,
                     seed: int = 0, hot_pixel_fraction: float = 2e-5, exposure_error: float = 0.02,
-                    show_progress: bool = False) -> tuple["Bracket", "Bracket | None"]:
+                    resume: bool = False, show_progress: bool = False,
+                    log: Callable[[str], None] | None = None) -> tuple["Bracket", "Bracket | None"]:
     """Shoot an exposure bracket of RAW frames into the new folder ``out`` (frames + bracket.json).
 
     ``camera``: ``sim`` (simulated A7), ``sim-usb`` (the USB code path against an emulated A7) or ``usb`` (a
@@ -40,17 +42,37 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     Simulated cameras: ``scene`` (point[:POWER], pinholes[:POWER[:SPACING]], night, flat[:LEVEL] or an EXR in
     relative radiance), ``psf`` (doe, dirac or an EXR), ``size_px`` (width, height; default: the profile's
     sensor), ``seed``, ``hot_pixel_fraction`` (of all pixels) and ``exposure_error`` (largest relative error of
-    a true shutter time). Returns the bracket and the dark bracket (or None).
+    a true shutter time). A folder that holds a capture is never overwritten (OutputExistsError); ``resume``
+    continues an incomplete one instead, keeping the frames on disk (InputError when it is complete).
+    ``log`` receives one line per event (the camera, each frame, the time taken, the bracket's notes).
+    Returns the bracket and the dark bracket (or None).
     """
+    import time
+
     from hdrcam.capture.backends import open_camera
     from hdrcam.capture.bracket import BracketCapture, BracketPlan
+    from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
     from hdrcam.capture.notches import nearest_shutter
     from hdrcam.capture.scene import load_scene
     from hdrcam.capture.simulated import simulation_psf
+    from hdrcam.errors import InputError, OutputExistsError
     from hdrcam.profiles import load_profile
 
+    say = log or (lambda line: None)
     chosen = load_profile(profile)
     folder = Path(out)
+    lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME
+    saved = saved_darks = None
+    if resume:
+        saved = load_bracket(lights_manifest)
+        saved_darks = load_bracket(darks_manifest) if darks_manifest.exists() else None
+        if saved.status == "complete" and (not darks or getattr(saved_darks, "status", "") == "complete"):
+            raise InputError(f"{folder}: the capture is complete; nothing to resume")
+    else:
+        for manifest in (lights_manifest, darks_manifest):
+            if manifest.exists():
+                raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out "
+                                        "(or pass --resume to continue an incomplete one)")
     plan = BracketPlan(shortest_s=shortest_s, stops=stops or chosen.calibration.stops,
                        ev_step=ev_step or chosen.calibration.ev_step, iso=iso, auto=auto, roi=roi,
                        target_snr=chosen.calibration.target_snr, snr_percentile=chosen.calibration.snr_percentile)
@@ -58,21 +80,42 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     if camera != "usb":
         width, height = size_px or (chosen.camera.width_px, chosen.camera.height_px)
         rendered = load_scene(scene, height, width, seed=seed)
-        kernel = simulation_psf(chosen, psf)
+        kernel = simulation_psf(chosen, psf)  # the DOE is part of the camera, not of the seed
     device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
                                     hot_pixel_fraction=hot_pixel_fraction, exposure_error=exposure_error)
-    options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed}
+    options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed,
+               "profile_sha256": sha256_of(chosen.path)}
     truth = simulated.true_exposure_s if simulated else None
-    dark_bracket = None
+    started, shot, dark_bracket = time.perf_counter(), 0, None
     with device:
-        bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name, options=options,
-                                 true_exposure_s=truth, show_progress=show_progress).shoot(plan)
+        say(f"camera: {device.model} ({camera}); profile {chosen.name}")
+        if saved is not None and saved.status == "complete":
+            bracket = saved
+        else:
+            bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name,
+                                     options=options, true_exposure_s=truth,
+                                     show_progress=show_progress).shoot(plan, resume=saved)
+            shot += len(bracket.frames) - (len(saved.frames) if saved else 0)
+        _log_frames(say, bracket, folder)
         if darks:
             notches = [nearest_shutter(frame.exposure_s) for frame in bracket.frames]
             dark_bracket = BracketCapture(device, chosen.camera, folder / "darks", backend=camera,
                                           profile=chosen.name, options=options, true_exposure_s=truth,
-                                          show_progress=show_progress).shoot(plan, dark_notches=notches)
+                                          show_progress=show_progress).shoot(plan, dark_notches=notches,
+                                                                             resume=saved_darks)
+            shot += len(dark_bracket.frames) - (len(saved_darks.frames) if saved_darks else 0)
+            _log_frames(say, dark_bracket, folder / "darks")
+    seconds = time.perf_counter() - started
+    say(f"{shot} frames in {seconds:.1f} s ({seconds / max(shot, 1):.2f} s per frame) -> {lights_manifest}")
+    for note in bracket.notes:
+        say(f"note: {note}")
     return bracket, dark_bracket
+
+
+def _log_frames(say: Callable[[str], None], bracket: "Bracket", folder: Path) -> None:
+    for frame in bracket.frames:
+        say(f"  {folder / frame.file}  {frame.exposure_label:>7} ({frame.exposure_s:g} s)  ISO {frame.iso:g}  "
+            f"f/{frame.f_number:g}")
 
 
 def fuse(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,

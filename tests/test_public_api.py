@@ -35,6 +35,28 @@ def test_capture_then_fuse_through_the_api(tmp_path):
     assert image.colour == "camera RGB" and len(image.merge.exposures_s) == 3
 
 
+def test_capture_through_the_api_is_the_command_s_capture(tmp_path):
+    """The command calls the stage: same manifest options, never an overwrite, resume of a complete capture
+    refused, and the command's lines through ``log``."""
+    import json
+
+    import pytest
+
+    from hdrcam.errors import InputError, OutputExistsError
+
+    lines = []
+    options = dict(camera="sim", profile="simulated", scene="point", size_px=(64, 48), stops=2, ev_step=3.0)
+    bracket, _ = hdrcam.capture_bracket(tmp_path / "b", log=lines.append, **options)
+    manifest = json.loads((tmp_path / "b" / "bracket.json").read_text())
+    assert len(manifest["options"]["profile_sha256"]) == 64 and manifest["status"] == "complete"
+    assert lines[0].startswith("camera: ") and sum(".dng" in line for line in lines) == 2
+    assert lines[3].startswith("2 frames in ")
+    with pytest.raises(OutputExistsError, match="never overwritten"):
+        hdrcam.capture_bracket(tmp_path / "b", **options)
+    with pytest.raises(InputError, match="nothing to resume"):
+        hdrcam.capture_bracket(tmp_path / "b", resume=True, **options)
+
+
 def test_fuse_is_the_library_merge():
     data = Path(__file__).parent / "hdr" / "data"
     from hdrcam.hdr.fuse import fuse

@@ -3,16 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 from hdrcam.capture.backends import CAMERA_KINDS
-from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
-from hdrcam.capture.notches import nearest_shutter
 from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
                                   thirds_of_ev)
-from hdrcam.errors import InputError, OutputExistsError
-from hdrcam.profiles import load_profile
 
 
 def register(commands) -> None:
@@ -52,66 +47,12 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
-    from hdrcam.capture.backends import open_camera
-    from hdrcam.capture.bracket import BracketCapture, BracketPlan
-    from hdrcam.capture.scene import load_scene
-    from hdrcam.capture.simulated import simulation_psf
+    from hdrcam.stages import capture_bracket
 
-    profile = load_profile(arguments.profile)
-    folder: Path = arguments.out
-    lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME
-    saved = saved_darks = None
-    if arguments.resume:
-        saved = load_bracket(lights_manifest)
-        saved_darks = load_bracket(darks_manifest) if darks_manifest.exists() else None
-        if saved.status == "complete" and (not arguments.darks or getattr(saved_darks, "status", "") == "complete"):
-            raise InputError(f"{folder}: the capture is complete; nothing to resume")
-    else:
-        for manifest in (lights_manifest, darks_manifest):
-            if manifest.exists():
-                raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out "
-                                        "(or pass --resume to continue an incomplete one)")
-    plan = BracketPlan(shortest_s=arguments.shortest, stops=arguments.stops or profile.calibration.stops,
-                       ev_step=arguments.ev_step or profile.calibration.ev_step, iso=arguments.iso,
-                       auto=arguments.auto, roi=arguments.roi, target_snr=profile.calibration.target_snr,
-                       snr_percentile=profile.calibration.snr_percentile)
-    scene = psf = None
-    if arguments.camera != "usb":
-        width, height = arguments.size or (profile.camera.width_px, profile.camera.height_px)
-        scene = load_scene(arguments.scene, height, width, seed=arguments.seed)
-        psf = simulation_psf(profile, arguments.psf)  # the DOE is part of the camera, not of the seed
-    camera, simulated = open_camera(arguments.camera, profile, scene=scene, psf=psf, seed=arguments.seed,
-                                    hot_pixel_fraction=arguments.hot_pixels, exposure_error=arguments.exposure_error)
-    options = {"scene": scene.description if scene else None, "psf": arguments.psf if scene else None,
-               "seed": arguments.seed, "profile_sha256": sha256_of(profile.path)}
-    truth = simulated.true_exposure_s if simulated else None
-    started = time.perf_counter()
-    shot = 0
-    with camera:
-        print(f"camera: {camera.model} ({arguments.camera}); profile {profile.name}")
-        capture = BracketCapture(camera, profile.camera, folder, backend=arguments.camera, profile=profile.name,
-                                 options=options, true_exposure_s=truth)
-        if saved is not None and saved.status == "complete":
-            bracket = saved
-        else:
-            bracket = capture.shoot(plan, resume=saved)
-            shot += len(bracket.frames) - (len(saved.frames) if saved else 0)
-        _print_frames(bracket, folder)
-        if arguments.darks:
-            darks = BracketCapture(camera, profile.camera, folder / "darks", backend=arguments.camera,
-                                   profile=profile.name, options=options, true_exposure_s=truth)
-            notches = [nearest_shutter(frame.exposure_s) for frame in bracket.frames]
-            dark_bracket = darks.shoot(plan, dark_notches=notches, resume=saved_darks)
-            shot += len(dark_bracket.frames) - (len(saved_darks.frames) if saved_darks else 0)
-            _print_frames(dark_bracket, folder / "darks")
-    seconds = time.perf_counter() - started
-    print(f"{shot} frames in {seconds:.1f} s ({seconds / max(shot, 1):.2f} s per frame) -> {lights_manifest}")
-    for note in bracket.notes:
-        print(f"note: {note}")
+    capture_bracket(arguments.out, camera=arguments.camera, profile=arguments.profile,
+                    shortest_s=arguments.shortest, stops=arguments.stops, ev_step=arguments.ev_step,
+                    iso=arguments.iso, auto=arguments.auto, roi=arguments.roi, darks=arguments.darks,
+                    scene=arguments.scene, psf=arguments.psf, size_px=arguments.size, seed=arguments.seed,
+                    hot_pixel_fraction=arguments.hot_pixels, exposure_error=arguments.exposure_error,
+                    resume=arguments.resume, show_progress=True, log=print)
     return 0
-
-
-def _print_frames(bracket, folder: Path) -> None:
-    for frame in bracket.frames:
-        print(f"  {folder / frame.file}  {frame.exposure_label:>7} ({frame.exposure_s:g} s)  ISO {frame.iso:g}  "
-              f"f/{frame.f_number:g}")
