@@ -154,62 +154,100 @@ def calibrate_psf(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, 
                      size_px=size_px or chosen.simulation.psf_size_px, energy_fraction=energy_fraction)
 
 
-def design(out: str | Path, *, preset: str = "fast", profile: str = "simulated", doe: str | None = "rank1",
-           psf: str | None = None, data: str = "procedural", steps: int = 1000, batch: int = 4, crop_px: int = 128,
-           learning_rate: float | None = None, seed: int = 0, checkpoint_every: int = 100, resume: bool = False,
-           vgg_weights: str | Path | None = None, device: str = "auto", quiet: bool = False,
-           precision: str = "float32", channels_last: bool = False, data_workers: int | None = None) -> dict:
-    """Train the reconstruction network and (with ``doe`` rank1 or freeform) the DOE end to end.
+def design(out: str | Path, *, preset: str | None = None, profile: str | None = None, doe: str | None = None,
+           psf: str | None = None, init: str | Path | None = None, data: str | None = None, steps: int | None = None,
+           batch: int | None = None, crop_px: int | None = None, learning_rate: float | None = None,
+           seed: int | None = None, checkpoint_every: int | None = None, precision: str | None = None,
+           channels_last: bool | None = None, resume: bool = False, vgg_weights: str | Path | None = None,
+           random_vgg: bool = False, device: str = "auto", quiet: bool = False, data_workers: int | None = None
+           ) -> dict:
+    """Train the reconstruction network and (with ``doe`` rank1 or freeform, the default) the DOE end to end.
 
     ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
-    PSF. ``data``: procedural, a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` Adam steps of
-    ``batch`` crops of ``crop_px`` pixels (a multiple of 16); ``learning_rate`` of the network (default 1e-3,
-    polynomial decay). Writes the run folder ``out`` (config, log, checkpoint.pt every ``checkpoint_every``
-    steps, and model.pt at the end); ``resume`` continues it. Returns the last logged step (losses, seconds).
+    PSF. ``init``: start the network from this checkpoint's weights (same preset). ``data``: procedural (the
+    default), a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` (default 1000) Adam steps of
+    ``batch`` (4) crops of ``crop_px`` (128) pixels, a multiple of 16; ``learning_rate`` of the network (1e-3,
+    polynomial decay); ``preset`` fast, ``profile`` simulated, ``seed`` 0. ``precision`` (float32, bfloat16,
+    float16 on CUDA) and ``channels_last`` set the network's forward; ``data_workers`` CPU threads draw scenes
+    ahead (hdrcam.train.design). Writes the run folder ``out`` (config, log, checkpoint.pt every
+    ``checkpoint_every`` (100) steps, and model.pt at the end). ``resume`` continues it: options left as None
+    take the run's own values, options given must match them (InputError), except ``steps``, which may grow.
+    ``random_vgg``: random VGG-19 features for the ``paper`` preset (tests only). Returns the last logged step
+    (losses, seconds).
     """
-    from hdrcam.train.config import TrainConfig
+    from hdrcam.errors import InputError
+    from hdrcam.train.choices import FIXED_PSFS
 
-    config = TrainConfig(preset=preset, data=data, profile=profile, doe=None if psf else doe, psf=psf, steps=steps,
-                         batch=batch, crop_px=crop_px, seed=seed, checkpoint_every=checkpoint_every,
-                         precision=precision, channels_last=channels_last)
-    if learning_rate:
-        config.learning_rate = learning_rate
-    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet,
-                  data_workers=data_workers)
+    if psf and psf not in FIXED_PSFS and not Path(psf).is_file():
+        raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
+    if init is not None and not Path(init).is_file():
+        raise InputError(f"--init {init} does not exist")
+    given = _given(preset=preset, profile=profile, data=data, steps=steps, batch=batch, crop_px=crop_px,
+                   learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
+                   channels_last=channels_last, init_checkpoint=str(init) if init is not None else None)
+    if psf:
+        given.update(psf=str(psf), doe=None)
+    elif doe:
+        given.update(doe=doe, psf=None)
+    return _train(out, {"steps": 1000}, given, resume=resume, vgg_weights=vgg_weights, random_vgg=random_vgg,
+                  device=device, quiet=quiet, data_workers=data_workers)
 
 
-def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None = None, data: str = "procedural",
-             steps: int = 200, batch: int = 4, crop_px: int = 128, learning_rate: float = 2e-4, seed: int = 0,
-             checkpoint_every: int = 100, resume: bool = False, vgg_weights: str | Path | None = None,
-             device: str = "auto", quiet: bool = False, precision: str = "float32", channels_last: bool = False,
-             data_workers: int | None = None) -> dict:
+def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None = None, data: str | None = None,
+             steps: int | None = None, batch: int | None = None, crop_px: int | None = None,
+             learning_rate: float | None = None, seed: int | None = None, checkpoint_every: int | None = None,
+             precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
+             vgg_weights: str | Path | None = None, random_vgg: bool = False, device: str = "auto",
+             quiet: bool = False, data_workers: int | None = None) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
-    calibration/NAME/psf.exr). Options as :func:`design`; the learning rate starts gentler (2e-4). Writes the
-    run folder ``out``; returns the last logged step."""
+    calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
+    learning rate (2e-4: the network already works). Writes the run folder ``out``; returns the last logged
+    step."""
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
-    from hdrcam.train.config import TrainConfig
 
-    if not Path(psf).is_file():
-        raise InputError(f"--psf {psf} does not exist")
     start = Path(checkpoint) if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
-    config = TrainConfig(preset=state["preset"], data=data, profile=state["profile"], doe=None, psf=str(psf),
-                         steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
-                         checkpoint_every=checkpoint_every, init_checkpoint=str(start), precision=precision,
-                         channels_last=channels_last)
-    return _train(config, out, resume=resume, vgg_weights=vgg_weights, device=device, quiet=quiet,
-                  data_workers=data_workers)
+    if not Path(psf).is_file():
+        raise InputError(f"--psf {psf} does not exist")
+    new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
+               "init_checkpoint": str(start), "learning_rate": 2e-4}
+    given = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
+                   checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
+                   psf=str(psf), init_checkpoint=str(checkpoint) if checkpoint else None)
+    return _train(out, new_run, given, resume=resume, vgg_weights=vgg_weights, random_vgg=random_vgg, device=device,
+                  quiet=quiet, data_workers=data_workers)
 
 
-def _train(config, out: str | Path, *, resume: bool, vgg_weights, device: str, quiet: bool,
-           data_workers: int | None) -> dict:
+def _given(**fields) -> dict:
+    """The run fields a caller set (not None)."""
+    return {field: value for field, value in fields.items() if value is not None}
+
+
+def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_weights, random_vgg: bool, device: str,
+           quiet: bool, data_workers: int | None) -> dict:
+    """A new run from ``new_run`` (or, with ``resume``, the run saved in ``out``), then the fields ``given``;
+    train() refuses a resume whose given fields differ from the run's."""
     import torch
 
+    from hdrcam.errors import InputError
+    from hdrcam.train.checkpoint import read_checkpoint
+    from hdrcam.train.config import TrainConfig
     from hdrcam.train.design import train
 
+    if device == "cuda" and not torch.cuda.is_available():
+        raise InputError("--device cuda asked for, but torch sees no CUDA device")
+    checkpoint = Path(out) / "checkpoint.pt"
+    if resume and checkpoint.is_file():
+        config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
+    else:
+        config = TrainConfig(**new_run)
+    for field, value in given.items():
+        setattr(config, field, value)
+    config.__post_init__()  # a precision given after construction is checked too
     return train(config, Path(out), resume=resume, vgg_weights=Path(vgg_weights) if vgg_weights else None,
-                 device=None if device == "auto" else torch.device(device), quiet=quiet, data_workers=data_workers)
+                 random_vgg=random_vgg, quiet=quiet, data_workers=data_workers,
+                 device=None if device == "auto" else torch.device(device))  # auto: each torchrun rank its GPU
 
 
 def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None, *, data: str = "procedural",

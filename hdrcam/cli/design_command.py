@@ -7,15 +7,10 @@ import json
 import os
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from hdrcam.cli.arguments import compute_device, non_negative_int, positive_float, positive_int
-from hdrcam.errors import InputError
+from hdrcam.cli.arguments import non_negative_int, positive_float, positive_int
 from hdrcam.recon.presets import PRESETS
 from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
-
-if TYPE_CHECKING:
-    from hdrcam.train.config import TrainConfig
 
 
 def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> None:
@@ -48,11 +43,6 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
                              "results do not depend on it")
 
 
-_TRAINING_FIELDS = {"steps": "steps", "data": "data", "batch": "batch", "crop": "crop_px", "lr": "learning_rate",
-                    "seed": "seed", "checkpoint_every": "checkpoint_every", "precision": "precision",
-                    "channels_last": "channels_last"}
-
-
 def register(commands) -> None:
     design = commands.add_parser("design", help="end-to-end design of the DOE and the network",
                                  description="Jointly optimise a DOE height map and the reconstruction network "
@@ -80,31 +70,15 @@ def register(commands) -> None:
     finetune.set_defaults(run=run_finetune)
 
 
-def _config(arguments: argparse.Namespace, new_run: dict, given: dict) -> TrainConfig:
-    """The run's configuration: ``new_run`` fields (a new run) or the saved ones (--resume), then the fields
-    ``given`` on the command line; train() refuses a resume whose given fields differ from the run's."""
-    given = dict(given, **{field: getattr(arguments, option) for option, field in _TRAINING_FIELDS.items()
-                           if getattr(arguments, option) is not None})
-    from hdrcam.train.checkpoint import read_checkpoint
-    from hdrcam.train.config import TrainConfig
-
-    checkpoint = arguments.out / "checkpoint.pt"
-    if arguments.resume and checkpoint.is_file():
-        config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
-    else:
-        config = TrainConfig(**new_run)
-    for field, value in given.items():
-        setattr(config, field, value)
-    return config
-
-
-def _train(config: TrainConfig, arguments: argparse.Namespace) -> int:
-    from hdrcam.train.design import train
-
+def _train(stage, arguments: argparse.Namespace, **fields) -> int:
+    """Run ``stage`` (hdrcam.stages.design or finetune) with the options given; print the run's summary."""
     started = time.perf_counter()
-    last = train(config, arguments.out, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
-                 random_vgg=arguments.random_vgg, device=compute_device(arguments.device),
-                 data_workers=arguments.data_workers)
+    last = stage(out=arguments.out, data=arguments.data, steps=arguments.steps, batch=arguments.batch,
+                 crop_px=arguments.crop, learning_rate=arguments.lr, seed=arguments.seed,
+                 checkpoint_every=arguments.checkpoint_every, precision=arguments.precision,
+                 channels_last=arguments.channels_last, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
+                 random_vgg=arguments.random_vgg, device=arguments.device, data_workers=arguments.data_workers,
+                 **fields)
     if os.environ.get("RANK", "0") != "0":  # under torchrun only the first process reports
         return 0
     print(json.dumps({"run": str(arguments.out), "model": str(arguments.out / "model.pt"),
@@ -113,29 +87,13 @@ def _train(config: TrainConfig, arguments: argparse.Namespace) -> int:
 
 
 def run_design(arguments: argparse.Namespace) -> int:
-    if arguments.psf and arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
-        raise InputError(f"--psf {arguments.psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
-    if arguments.init is not None and not arguments.init.is_file():
-        raise InputError(f"--init {arguments.init} does not exist")
-    given = {field: getattr(arguments, field) for field in ("preset", "profile") if getattr(arguments, field)}
-    if arguments.psf:
-        given.update(psf=arguments.psf, doe=None)
-    elif arguments.doe:
-        given.update(doe=arguments.doe, psf=None)
-    if arguments.init is not None:
-        given.update(init_checkpoint=str(arguments.init))
-    return _train(_config(arguments, {"steps": 1000}, given), arguments)
+    from hdrcam.stages import design
+
+    return _train(design, arguments, preset=arguments.preset, profile=arguments.profile, doe=arguments.doe,
+                  psf=arguments.psf, init=arguments.init)
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:
-    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
+    from hdrcam.stages import finetune
 
-    checkpoint = arguments.checkpoint or SHIPPED_CHECKPOINT
-    state = read_checkpoint(checkpoint)
-    if not arguments.psf.is_file():
-        raise InputError(f"--psf {arguments.psf} does not exist")
-    new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
-               "init_checkpoint": str(checkpoint),
-               "learning_rate": 2e-4}  # a gentler start than from scratch: the network already works
-    given = {"psf": str(arguments.psf), **({"init_checkpoint": str(checkpoint)} if arguments.checkpoint else {})}
-    return _train(_config(arguments, new_run, given), arguments)
+    return _train(finetune, arguments, psf=arguments.psf, checkpoint=arguments.checkpoint)
