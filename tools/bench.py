@@ -39,6 +39,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from timing import timed_seconds  # noqa: E402
+
 CONFIGS = [("fast", "float32", 256), ("fast", "float32", 512), ("fast", "float32", 1024),
            ("lite", "float32", 256), ("lite", "float32", 512), ("paper", "float32", 256),
            ("paper", "float32", 512), ("fast", "bfloat16", 128), ("fast", "float16", 128)]
@@ -49,25 +52,15 @@ def cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def best_seconds(function, repeats: int = 5) -> float:
-    function()
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - started)
-    return min(times)
-
-
 def matmul_peak_flops(size: int = 2048) -> float:
     a, b = torch.rand(size, size), torch.rand(size, size)
-    return 2 * size ** 3 / best_seconds(lambda: a @ b)
+    return 2 * size ** 3 / timed_seconds(lambda: a @ b, 5)
 
 
 def copy_bandwidth_bytes_per_s(mebibytes: int = 256) -> float:
     source = torch.rand(mebibytes * 2 ** 20 // 4)
     target = torch.empty_like(source)
-    return 2 * source.numel() * 4 / best_seconds(lambda: target.copy_(source))
+    return 2 * source.numel() * 4 / timed_seconds(lambda: target.copy_(source), 5)
 
 
 def traffic_bytes(network: torch.nn.Module, image: torch.Tensor) -> float:
@@ -183,7 +176,7 @@ def roofline(repeats: int, threads: int) -> list[str]:
              "| load (1 min) |", "|---|---|---|---|---|---|"]
     for label, forward, x in paths:
         with torch.no_grad():
-            times = [best_seconds(lambda: forward(x), repeats=1) for _ in range(repeats)]
+            times = [timed_seconds(lambda: forward(x), 1) for _ in range(repeats)]
             error = forward(x) - reference
         seconds, mse = statistics.median(times), float(torch.mean(error ** 2))
         psnr = "identical" if mse == 0 else f"{10 * np.log10(PEAK_RADIANCE ** 2 / mse):.1f}"

@@ -12,10 +12,13 @@ from __future__ import annotations
 import argparse
 import platform
 import statistics
-import time
+import sys
 from pathlib import Path
 
 import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from timing import timed_seconds  # noqa: E402
 
 from hdrcam.recon.flops import forward_gflops, parameter_count
 from hdrcam.recon.losses import LossWeights, reconstruction_loss
@@ -26,23 +29,7 @@ from hdrcam.recon.vgg import load_vgg19
 
 def matmul_peak_gflops(size: int = 2048, repeats: int = 5) -> float:
     a, b = torch.rand(size, size), torch.rand(size, size)
-    a @ b
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        a @ b
-        times.append(time.perf_counter() - started)
-    return 2 * size ** 3 / min(times) / 1e9
-
-
-def median_seconds(function, repeats: int) -> float:
-    function()
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
+    return 2 * size ** 3 / timed_seconds(lambda: a @ b, repeats) / 1e9
 
 
 def main() -> None:
@@ -65,7 +52,7 @@ def main() -> None:
         gflops = forward_gflops(network, image)
         repeats = 1 if name == "paper" else arguments.repeats
         with torch.no_grad():
-            forward = median_seconds(lambda: network(image), repeats)
+            forward = timed_seconds(lambda: network(image), repeats, statistics.median)
         network.train()
         optimizer = torch.optim.Adam([p for p in network.parameters() if p.requires_grad], lr=1e-4)
         batch, target = torch.rand(4, 3, 128, 128), torch.rand(4, 3, 128, 128) * 4
@@ -76,7 +63,7 @@ def main() -> None:
             loss.backward()
             optimizer.step()
 
-        train_step = median_seconds(step, repeats)
+        train_step = timed_seconds(step, repeats, statistics.median)
         rate = gflops / forward
         lines.append(f"| {name} | {parameter_count(network) / 1e6:.2f} M | {gflops:.1f} | {forward:.2f} | "
                      f"{rate:.0f} | {100 * rate / peak:.0f} % | {train_step:.2f} |")
