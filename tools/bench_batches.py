@@ -24,6 +24,17 @@ from hdrcam.data.scenes import SceneSource
 from hdrcam.train.batches import BatchStream
 
 
+def worker_counts(text: str) -> list[int]:
+    """'1,2' -> [1, 2]; argparse reports anything but counts of at least 0 in one line."""
+    try:
+        counts = [int(value) for value in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected thread counts such as 1,2, got {text!r}") from None
+    if any(count < 0 for count in counts):
+        raise argparse.ArgumentTypeError(f"thread counts are at least 0, got {text!r}")
+    return counts
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", required=True)
@@ -31,7 +42,7 @@ def main() -> int:
     parser.add_argument("--margin", type=int, default=127)
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--batches", type=int, default=3)
-    parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--workers", type=worker_counts, default=[1, 2], help="comma-separated thread counts")
     add_report_options(parser, "tools/results/batches.md")
     arguments = parser.parse_args()
     one_line_errors.refuse_existing(arguments.out, arguments.overwrite)
@@ -39,12 +50,12 @@ def main() -> int:
     load_start = os.getloadavg()[0]
     lines = [f"`python tools/bench_batches.py --data {arguments.data} --crop {arguments.crop} --margin "
              f"{arguments.margin} --batch {arguments.batch} --batches {arguments.batches} --workers "
-             f"{arguments.workers}` on {os.cpu_count()} cores", "",
+             f"{','.join(map(str, arguments.workers))}` on {os.cpu_count()} cores", "",
              "| worker threads | seconds per batch | scenes per second |", "|---|---|---|"]
     with BatchStream(source, crop_px=arguments.crop, margin_px=arguments.margin, batch=arguments.batch,
                      run_seed=1) as warm_up:
         warm_up.next_batch()
-    for workers in (int(value) for value in arguments.workers.split(",")):
+    for workers in arguments.workers:
         began = time.perf_counter()
         with BatchStream(source, crop_px=arguments.crop, margin_px=arguments.margin, batch=arguments.batch,
                          run_seed=0, workers=workers) as stream:

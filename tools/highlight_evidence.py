@@ -71,15 +71,24 @@ def evidence(optics: OpticalCapture, scene: np.ndarray, seed: int) -> tuple[floa
     return (float(rise.sum()) / flux if flux > 0 else float("nan")), int((rise.max(axis=-1) > VISIBLE_RISE).sum())
 
 
+def labelled_path(text: str) -> tuple[str, str]:
+    """LABEL=PATH -> (label, path); argparse reports anything else in one line."""
+    label, equals, path = text.partition("=")
+    if not (label and equals and path):
+        raise argparse.ArgumentTypeError(f"expected LABEL=PATH, got {text!r}")
+    return label, path
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", required=True, help="folder of .hdr/.exr photographs, or 'procedural'")
-    parser.add_argument("--checkpoint", action="append", required=True, help="LABEL=PATH (repeatable)")
+    parser.add_argument("--checkpoint", action="append", required=True, type=labelled_path,
+                        help="LABEL=PATH (repeatable)")
     parser.add_argument("--count", type=int, default=14)
     add_report_options(parser, "tools/results/highlight-evidence.md")
     arguments = parser.parse_args()
     one_line_errors.refuse_existing(arguments.out, arguments.overwrite)
-    labelled = dict(entry.split("=", 1) for entry in arguments.checkpoint)
+    labelled = dict(arguments.checkpoint)
     optics = {label: OpticalCapture(load_profile(model.profile), psf=model.psf)
               for label, model in ((label, load_model(path)) for label, path in labelled.items())}
     margin = max(capture_model.margin_px for capture_model in optics.values())
