@@ -13,6 +13,7 @@ imported before a function runs (torch only for design, finetune and evaluate).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -242,9 +243,7 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
         config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
     else:
         config = TrainConfig(**new_run)
-    for field, value in given.items():
-        setattr(config, field, value)
-    config.__post_init__()  # a precision given after construction is checked too
+    config = dataclasses.replace(config, **given)  # checks the given fields as a new config would
     return train(config, Path(out), resume=resume, vgg_weights=Path(vgg_weights) if vgg_weights else None,
                  random_vgg=random_vgg, quiet=quiet, data_workers=data_workers,
                  device=None if device == "auto" else torch.device(device))  # auto: each torchrun rank its GPU

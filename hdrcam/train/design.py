@@ -60,6 +60,8 @@ class DesignModel(nn.Module):
     def __init__(self, capture: OpticalCapture, network: ReconstructionNet, *, precision: str = "float32",
                  channels_last: bool = False):
         super().__init__()
+        if channels_last:
+            network = network.to(memory_format=torch.channels_last)
         self.capture, self.network = capture, network
         self.autocast_dtype = None if precision == "float32" else getattr(torch, precision)
         self.memory_format = torch.channels_last if channels_last else torch.contiguous_format
@@ -89,8 +91,6 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool)
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
         network.load_state_dict(state["network"], strict=False)
-    if config.channels_last:
-        network = network.to(memory_format=torch.channels_last)
     return DesignModel(capture, network, precision=config.precision, channels_last=config.channels_last)
 
 
