@@ -36,9 +36,6 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
-    import cv2
-    import numpy as np
-
     from hdrcam.hdr.bracket_input import bracket_paths
     from hdrcam.hdr.fuse import fuse
     from hdrcam.io.exr import write_exr_channels
@@ -54,9 +51,9 @@ def run(arguments: argparse.Namespace) -> int:
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
                  with_variance=arguments.variance, demosaic_method=arguments.demosaic)
-    channels = dict(zip("RGB", cv2.split(image.rgb)), clipped=image.clipped.astype(np.float32))
+    channels = {"RGB": image.rgb, "clipped": image.clipped}
     if image.variance is not None:
-        channels.update(zip(("variance.R", "variance.G", "variance.B"), cv2.split(image.variance)))
+        channels["variance"] = image.variance
     write_exr_channels(out, channels, attributes=image.attributes(), half=arguments.half,
                        overwrite=arguments.overwrite, compression=arguments.compression)
     write_png(preview, tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), overwrite=arguments.overwrite)

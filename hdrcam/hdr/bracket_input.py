@@ -61,8 +61,9 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     files = bracket_files(sources, kind)
     from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
     with ThreadPoolExecutor(worker_threads()) as pool:
-        work = [(pool.submit(sha256_of, path) if expected else None, pool.submit(_read, path, kind == "light"))
-                for path, expected in files]
+        reads = [pool.submit(_read, path, kind == "light") for path, _ in files]  # decoding first: it takes longest
+        work = [(pool.submit(sha256_of, path) if expected else None, read)
+                for (path, expected), read in zip(files, reads)]
         try:
             for (path, expected), (digest, _) in zip(files, work):
                 if digest is not None and digest.result() != expected:

@@ -7,10 +7,15 @@ keeps the selection independent of the pair's noise (selecting on a noisy value 
 ratio), while dropping the empty background, whose noise would swamp a point source. The upper bound depends
 on the ratio, so each ratio is refined up to REFINEMENTS times, starting from the labels.
 
-Signals are in DN above black; exposures in seconds. Every pair's sums of one refinement are taken in one
-pass over strips of rows (a thread pool's map; the first pass also keeps each pair's candidate pixels for
-the next): a strip's sums are float32 sums of products by numpy's einsum (relative error ~1e-7; not BLAS,
-whose own threads would compete with the pool's), added over strips in float64.
+Signals are in DN above black; exposures in seconds.
+
+Speed: one pass over strips of rows (a thread pool's map) serves every refinement. Per pair it sums the
+selected pixels whose shorter-frame signal lies below the labelled bound divided by BOUND_BAND, and keeps
+those within BOUND_BAND of that bound; a refinement whose bound stays in the band adds the kept pixels below
+it to those sums. A bound outside the band (a ratio off its label by more than BOUND_BAND) costs one more
+pass for that refinement. A strip's sums are float32 sums of products by numpy's einsum (relative error
+~1e-7; not BLAS, whose own threads would compete with the pool's), added over strips in float64, as are the
+kept pixels' sums.
 """
 
 from __future__ import annotations
@@ -24,38 +29,67 @@ MIN_RATIO_SAMPLES = 200
 RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
 SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame
 REFINEMENTS = 3
+BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
+
+StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
 
-def estimate_exposures(strip_signals: Callable[[slice], list[np.ndarray]], clipped: list[np.ndarray],
-                       row_strips: list[slice], labelled_s: np.ndarray, threshold_dn: float, noise_floor_dn: float,
-                       notes: list[str], pool: ThreadPoolExecutor) -> np.ndarray:
+def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_s: np.ndarray, threshold_dn: float,
+                       noise_floor_dn: float, notes: list[str], pool: ThreadPoolExecutor) -> np.ndarray:
     """Estimated exposure per frame (seconds, shortest first; geometric mean equal to the labels').
 
-    ``strip_signals(rows)``: every frame's float32 signal (DN above black) on those rows; ``clipped``: H x W bool
-    per frame, samples at or above the clip threshold ``threshold_dn`` (not dilated: each sample stands alone
-    here); ``noise_floor_dn``: the read noise of one signal. One line per pair is appended to ``notes``.
+    ``strip_data(rows)``: every frame's float32 signal (DN above black) on those rows and its samples at or
+    above the clip threshold ``threshold_dn`` (bool; not dilated: each sample stands alone here);
+    ``noise_floor_dn``: the read noise of one signal. One line per pair is appended to ``notes``.
     """
     pairs = len(labelled_s) - 1
     labelled = [float(labelled_s[k + 1] / labelled_s[k]) for k in range(pairs)]
-    ratios, counts, refining = list(labelled), [0] * pairs, list(range(pairs))
-    candidates = [np.empty(clipped[0].shape, bool) for _ in range(pairs)]  # found in the first pass
-    for refinement in range(REFINEMENTS):
-        bounds = {k: RATIO_HEADROOM * threshold_dn / ratios[k] for k in refining}
 
-        def sums(rows: slice, bounds=bounds, first=refinement == 0) -> np.ndarray:
-            signals = strip_signals(rows)
-            totals = np.zeros((pairs, 3), np.float64)  # per pair: count, sum of the shorter, sum of the longer
+    def bound_dn(ratio: float) -> float:
+        return RATIO_HEADROOM * threshold_dn / ratio
+
+    bands = [(bound_dn(ratio) / BOUND_BAND, bound_dn(ratio) * BOUND_BAND) for ratio in labelled]
+
+    def first_pass(rows: slice) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+        signals, clipped = strip_data(rows)
+        below_band = np.zeros((pairs, 3), np.float64)
+        kept = []
+        for k, (low, high) in enumerate(bands):
+            selected = _selected(signals, clipped, k, noise_floor_dn)
+            below = np.less(signals[k], low)
+            below &= selected
+            below_band[k] = _sums(signals[k], signals[k + 1], below)
+            inside = np.greater_equal(signals[k], low)
+            inside &= np.less(signals[k], high)
+            inside &= selected
+            kept.append((signals[k][inside], signals[k + 1][inside]))
+        return below_band, kept
+
+    strip_results = list(pool.map(first_pass, row_strips))
+    below_band = np.sum([below for below, _ in strip_results], axis=0)  # added in strip order
+    kept = [strip_kept for _, strip_kept in strip_results]  # per strip, per pair
+
+    def full_pass(bounds: dict[int, float]) -> np.ndarray:
+        def sums(rows: slice) -> np.ndarray:
+            signals, clipped = strip_data(rows)
+            totals = np.zeros((pairs, 3), np.float64)
             for k, bound in bounds.items():
-                if first:
-                    _find_candidates(signals, clipped, k, rows, noise_floor_dn, out=candidates[k][rows])
                 valid = np.less(signals[k], bound)
-                valid &= candidates[k][rows]
-                weights = valid.astype(np.float32)
-                totals[k] = (np.count_nonzero(valid), np.einsum("ij,ij->", signals[k], weights),
-                             np.einsum("ij,ij->", signals[k + 1], weights))
+                valid &= _selected(signals, clipped, k, noise_floor_dn)
+                totals[k] = _sums(signals[k], signals[k + 1], valid)
             return totals
 
-        totals = np.sum(list(pool.map(sums, row_strips)), axis=0)  # added in strip order
+        return np.sum(list(pool.map(sums, row_strips)), axis=0)
+
+    ratios, counts, refining = list(labelled), [0] * pairs, list(range(pairs))
+    for _ in range(REFINEMENTS):
+        bounds = {k: bound_dn(ratios[k]) for k in refining}
+        outside = {k: bound for k, bound in bounds.items() if not bands[k][0] <= bound <= bands[k][1]}
+        totals = full_pass(outside) if outside else np.zeros((pairs, 3))
+        in_band = {k: bound for k, bound in bounds.items() if k not in outside}
+        kept_totals = np.sum(list(pool.map(lambda strip_kept: _kept_sums(strip_kept, in_band), kept)), axis=0)
+        for k in in_band:
+            totals[k] = below_band[k] + kept_totals[k]
         for k in list(refining):
             counts[k] = int(totals[k, 0])
             if counts[k] < MIN_RATIO_SAMPLES or totals[k, 1] <= 0:
@@ -75,11 +109,31 @@ def estimate_exposures(strip_signals: Callable[[slice], list[np.ndarray]], clipp
     return relative * scale
 
 
-def _find_candidates(signals: list[np.ndarray], clipped: list[np.ndarray], k: int, rows: slice,
-                     noise_floor_dn: float, out: np.ndarray) -> None:
-    """``out`` (strip bool): unclipped in frames k and k+1 and carrying signal in a third frame (or clipped there)."""
-    np.logical_or(clipped[k][rows], clipped[k + 1][rows], out=out)
-    np.logical_not(out, out=out)
+def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray]], bounds_dn: dict[int, float]) -> np.ndarray:
+    """Per pair k of ``bounds_dn``: (count, sum of the shorter, sum of the longer frame's signal) over a strip's
+    kept pixels of that pair (``strip_kept[k]``: both frames' float32 signals) whose shorter-frame signal is
+    below ``bounds_dn[k]``, summed in float64."""
+    totals = np.zeros((len(strip_kept), 3), np.float64)
+    for k, bound in bounds_dn.items():
+        shorter, longer = strip_kept[k]
+        below = np.less(shorter, bound)
+        totals[k] = (np.count_nonzero(below), shorter[below].sum(dtype=np.float64),
+                     longer[below].sum(dtype=np.float64))
+    return totals
+
+
+def _sums(shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> tuple[int, float, float]:
+    """(count, sum of ``shorter``, sum of ``longer``) over ``valid`` (float32 products summed by einsum)."""
+    weights = valid.astype(np.float32)
+    return (np.count_nonzero(valid), float(np.einsum("ij,ij->", shorter, weights)),
+            float(np.einsum("ij,ij->", longer, weights)))
+
+
+def _selected(signals: list[np.ndarray], clipped: list[np.ndarray], k: int, noise_floor_dn: float) -> np.ndarray:
+    """Strip bool: unclipped in frames k and k+1 and carrying signal in a third frame (or clipped there)."""
+    selected = np.logical_or(clipped[k], clipped[k + 1])
+    np.logical_not(selected, out=selected)
     other = k + 2 if k + 2 < len(signals) else k - 1
     if other >= 0:
-        out &= (signals[other] > SIGNAL_FLOOR * noise_floor_dn) | clipped[other][rows]
+        selected &= (signals[other] > SIGNAL_FLOOR * noise_floor_dn) | clipped[other]
+    return selected

@@ -77,7 +77,7 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     frames = read_bracket(sources)
     if all(clipped_samples(frame.bayer_dn, frame.clip_level_tile_dn).all() for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
-    merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks))
+    merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks), with_variance=with_variance)
     meta = frames[0].metadata
     rgb = demosaic(merge.rate, meta.cfa_pattern, demosaic_method)
     variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, demosaic_method) if with_variance else None

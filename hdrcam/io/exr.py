@@ -143,7 +143,8 @@ COMPRESSIONS = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION} 
 def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] | None = None,
               attributes: dict[str, Any] | None = None, half: bool = False, overwrite: bool = False,
               compression: str = "zip") -> Path:
-    """Write an H x W or H x W x C array atomically as a scanline EXR (see :func:`write_exr_channels`)."""
+    """Write an H x W or H x W x C array atomically as a scanline EXR (see :func:`write_exr_channels`); R, G, B
+    are written straight from the interleaved array."""
     pixels = np.asarray(pixels)
     planes = pixels[..., None] if pixels.ndim == 2 else pixels
     if planes.ndim != 3:
@@ -151,31 +152,40 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
     names = channel_names or default_channel_names(pixels)
     if len(names) != planes.shape[-1]:
         raise ValueError(f"{len(names)} channel names for {planes.shape[-1]} channels")
-    return write_exr_channels(path, {name: planes[..., index] for index, name in enumerate(names)},
-                              attributes=attributes, half=half, overwrite=overwrite, compression=compression)
+    channels = {"RGB": planes} if tuple(names) == ("R", "G", "B") else \
+        {name: planes[..., index] for index, name in enumerate(names)}
+    return write_exr_channels(path, channels, attributes=attributes, half=half, overwrite=overwrite,
+                              compression=compression)
 
 
 def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attributes: dict[str, Any] | None = None,
                        half: bool = False, overwrite: bool = False, compression: str = "zip") -> Path:
-    """Write H x W planes (name -> array, in file order) atomically as a scanline EXR.
+    """Write channels atomically as a scanline EXR.
 
-    ``compression``: "zip" (lossless deflate, the default: smaller, and slower - about 4 s for 24 MP x 4
-    float32 channels on 2 cores) or "none" (about a third larger for noisy float data, written at disk speed);
-    OpenEXR reads both in every version. ``attributes`` holds str, int or float values (floats are stored as
-    32-bit). ``half`` stores 16-bit floats and raises InputError when a value exceeds the half range;
-    non-finite values are refused.
+    Each value is an H x W plane, or an H x W x 3 colour group written without a copy (OpenEXR reads the
+    interleaved array with strides): under the key "RGB" as channels R, G, B, under another key K as K.R, K.G,
+    K.B. A bool plane (a mask) is stored as half floats 0 and 1. ``compression``: "zip" (lossless deflate, the
+    default: smaller, and slower - about 4 s for 24 MP x 4 float32 channels on 2 cores) or "none" (about a
+    third larger for noisy float data, written at disk speed); OpenEXR reads both in every version.
+    ``attributes`` holds str, int or float values (floats are stored as 32-bit). ``half`` stores 16-bit floats
+    and raises InputError when a value exceeds the half range; non-finite values are refused.
     """
     if compression not in COMPRESSIONS:
         raise ValueError(f"unknown EXR compression {compression!r}; choose from {', '.join(COMPRESSIONS)}")
-    planes = {name: np.asarray(plane) for name, plane in channels.items()}
-    if not all(np.isfinite(plane).all() for plane in planes.values()):
+    arrays = {name: np.asarray(array) for name, array in channels.items()}
+    for name, array in arrays.items():
+        if not (array.ndim == 2 or (array.ndim == 3 and array.shape[-1] == 3)):
+            raise ValueError(f"channel {name}: expected an H x W plane or an H x W x 3 group, got shape {array.shape}")
+    values = [array for array in arrays.values() if array.size and array.dtype != bool]
+    lowest = min((float(array.min()) for array in values), default=0.0)  # NaN and Inf show in the extremes,
+    highest = max((float(array.max()) for array in values), default=0.0)  # without a temporary the image's size
+    if not (np.isfinite(lowest) and np.isfinite(highest)):
         raise InputError(f"{path}: refusing to write NaN or Inf values")
-    if half:
-        peak = max((float(np.max(np.abs(plane))) for plane in planes.values() if plane.size), default=0.0)
-        if peak > HALF_MAX:
-            raise InputError(f"{path}: values up to {peak:.6g} exceed the half-float range ({HALF_MAX:g}); "
-                             "write float32 instead")
-    pixels = {name: np.ascontiguousarray(plane, np.float16 if half else np.float32) for name, plane in planes.items()}
+    if half and max(highest, -lowest) > HALF_MAX:
+        raise InputError(f"{path}: values up to {max(highest, -lowest):.6g} exceed the half-float range "
+                         f"({HALF_MAX:g}); write float32 instead")
+    pixels = {name: _half_mask(array) if array.dtype == bool
+              else np.ascontiguousarray(array, np.float16 if half else np.float32) for name, array in arrays.items()}
     header = {"compression": COMPRESSIONS[compression], "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
         value = value.item() if isinstance(value, np.generic) else value
@@ -187,3 +197,10 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
     with atomic_path(Path(path), overwrite=overwrite) as temporary, open(temporary, "wb") as file:
         OpenEXR.File(header, pixels).write(file)  # through a Python file: any name works, a full disk names its cause
     return Path(path)
+
+
+def _half_mask(mask: np.ndarray) -> np.ndarray:
+    """A bool array as half floats 0 and 1, built from their bit patterns (numpy's float16 conversion is slow)."""
+    bits = mask.astype(np.uint16)
+    bits *= np.uint16(0x3C00)  # IEEE 754 half 1.0
+    return bits.view(np.float16)

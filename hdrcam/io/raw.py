@@ -97,7 +97,8 @@ def read_raw_metadata(path: str | Path) -> RawMetadata:
     return _read(Path(path), with_pixels=False)[0]
 
 
-RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer and hdrcam's copy (uint16 each), a merge's float32 signal and masks
+RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer (uint16, kept: the frame is a view of it) and the frame's share of the
+# merge (float32 rate and variance, a mask) and of the demosaiced float32 RGB
 
 
 def read_raw(path: str | Path) -> RawFrame:
@@ -115,8 +116,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if tiff.data_end_bytes > tiff.file_bytes:
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
                          f"file ends at {tiff.file_bytes}; copy it from the card again")
+    raw, bayer = rawpy.RawPy(), None
     try:
-        with _libraw_stderr_silenced(), rawpy.RawPy() as raw:
+        with _libraw_stderr_silenced():
             raw.open_file(str(path))  # the header only: sizes are checked before LibRaw allocates the pixels
             check_image_size(str(path), int(raw.sizes.raw_height), int(raw.sizes.raw_width), RAW_BYTES_PER_PIXEL,
                              "use a machine with more memory")
@@ -125,7 +127,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
             tile = raw.raw_pattern[:2, :2].ravel()
             black = [float(b) for b in raw.black_level_per_channel]
             other = raw.other
-            bayer = np.array(raw.raw_image_visible, dtype=np.uint16) if with_pixels else None
+            if with_pixels:  # a read-only view of LibRaw's buffer, which it keeps alive (no copy)
+                bayer = raw.raw_image_visible
+                bayer.flags.writeable = False
             matrix, matrix_source = _colour_matrix(np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64), tiff)
             metadata = RawMetadata(
                 path=path, width_px=int(raw.sizes.width), height_px=int(raw.sizes.height),
@@ -146,6 +150,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise NotRawError(f"{path}: LibRaw does not open it as RAW ({_libraw_reason(error)})") from None
     except Exception as error:  # LibRaw raises many types for damaged files
         raise InputError(f"{path}: cannot read as RAW ({type(error).__name__}: {_libraw_reason(error)})") from None
+    finally:
+        if bayer is None:
+            raw.close()
     filled_rows = repeated_tail_rows(bayer) if bayer is not None and not tiff.data_end_bytes else 0
     if filled_rows >= FILLED_ROWS:
         raise InputError(f"{path}: truncated or damaged: its last {filled_rows} rows repeat one row (LibRaw fills "

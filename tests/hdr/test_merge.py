@@ -70,6 +70,24 @@ def test_ratios_are_recovered_within_half_a_percent_from_labels_off_by_7_percent
     assert labelled_error > 0.02 and estimated_error < 0.005
 
 
+
+def test_refinements_from_the_kept_band_give_what_full_passes_give(tmp_path, monkeypatch):
+    """Labels off by 7 %: the default band keeps every refinement's bound inside it (one pass over the data); a band
+    of 1e-4 sends every refinement after the first to a full pass, and a band of 100 keeps nearly every pixel.
+    All three give the same exposures to 1e-6."""
+    import hdrcam.hdr.exposure_ratios as exposure_ratios
+
+    capture(tmp_path, seed=1, exposure_error=0.07)
+    frames = read_bracket([tmp_path])
+    exposures = {}
+    for band in (exposure_ratios.BOUND_BAND, 1.0001, 100.0):
+        monkeypatch.setattr(exposure_ratios, "BOUND_BAND", band)
+        exposures[band] = merge_bayer(frames, PROFILE.camera).exposures_s
+    for band, estimated in exposures.items():
+        np.testing.assert_allclose(estimated, exposures[100.0], rtol=1e-6, atol=0, err_msg=f"band {band}")
+    assert np.abs(np.log(exposures[100.0] / merge_bayer(frames, PROFILE.camera, estimate_ratios=False).exposures_s)
+                  ).max() > 0.02
+
 def test_pixels_clipped_everywhere_carry_a_finite_lower_bound_and_a_flag(tmp_path):
     radiance = np.full((32, 48, 3), 0.2, np.float32)
     radiance[10:14, 10:14] = 1e6  # clipped even at 1/4000 s

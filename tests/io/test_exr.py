@@ -94,3 +94,26 @@ def test_uncompressed_and_zip_files_hold_the_same_planes_and_say_which_they_are(
     assert sizes["zip"] < sizes["none"]
     with pytest.raises(ValueError, match="compression"):
         write_exr_channels(tmp_path / "x.exr", planes, compression="piz")
+
+
+def test_colour_groups_and_masks_are_written_without_copies_and_read_back_exactly(tmp_path):
+    """An H x W x 3 group under "RGB" becomes R, G, B (under another key K: K.R, K.G, K.B), taken straight from the
+    interleaved array; a bool mask is stored as half 0 / 1 and reads back as float32."""
+    rng = np.random.default_rng(2)
+    rgb = rng.uniform(0, 5e4, (6, 9, 3)).astype(np.float32)
+    variance = rng.uniform(0, 1e30, (6, 9, 3)).astype(np.float32)
+    mask = rng.random((6, 9)) > 0.5
+    path = write_exr_channels(tmp_path / "g.exr", {"RGB": rgb, "clipped": mask, "variance": variance})
+    image = read_exr(path)
+    assert set(image.channels) == {"R", "G", "B", "clipped", "variance.R", "variance.G", "variance.B"}
+    np.testing.assert_array_equal(image.rgb(), rgb)
+    np.testing.assert_array_equal(np.stack([image.channels[f"variance.{c}"] for c in "RGB"], -1), variance)
+    np.testing.assert_array_equal(image.channels["clipped"], mask.astype(np.float32))
+    with OpenEXR.File(str(path), separate_channels=True) as file:
+        assert file.channels()["clipped"].type() == OpenEXR.HALF
+    rgb[2, 3, 1] = np.nan
+    with pytest.raises(InputError, match="NaN or Inf"):
+        write_exr_channels(tmp_path / "nan.exr", {"RGB": rgb})
+    with pytest.raises(ValueError, match="H x W x 3"):
+        write_exr_channels(tmp_path / "four.exr", {"RGBA": np.zeros((2, 2, 4), np.float32)})
+    assert not (tmp_path / "nan.exr").exists() and not (tmp_path / "four.exr").exists()

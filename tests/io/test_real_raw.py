@@ -59,6 +59,21 @@ def test_the_real_arw_decodes_as_libraw_does(arw):
     assert frame.bayer_dn.max() == 16628
 
 
+
+def test_the_frame_is_a_read_only_view_that_outlives_the_reader(arw):
+    """read_raw keeps LibRaw's buffer instead of copying it: the frame's data stay valid after the reader is gone
+    and after a collection, and cannot be written by mistake."""
+    import gc
+
+    import rawpy
+
+    frame = read_raw(arw)
+    gc.collect()
+    with rawpy.imread(str(arw)) as raw:
+        assert np.array_equal(frame.bayer_dn, raw.raw_image_visible)
+    with pytest.raises(ValueError, match="read-only"):
+        frame.bayer_dn[0, 0] = 0
+
 def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw, tmp_path, capsys):
     half = tmp_path / "half.ARW"
     half.write_bytes(arw.read_bytes()[:arw.stat().st_size // 2])
