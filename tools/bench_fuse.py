@@ -2,8 +2,10 @@
 
 A bracket of five 6000 x 4000 DNGs from the simulated A7 (night scene, 3 EV apart from 1/4000 s; made in a
 temporary folder unless --bracket names one). Each repeat times, in turn: rawpy reading the five files
-(imread + the visible Bayer data), ``hdrcam.fuse`` (read, merge, demosaic, colour; nothing written) and the
-``hdrcam fuse`` command (a fresh process: start-up, fuse, the EXR and the PNG preview). Medians of --repeats.
+(imread + the visible Bayer data), ``hdrcam.fuse`` (read, merge, demosaic, colour; nothing written), what the
+command adds to it - writing the EXR (RGB and the clipped mask, uncompressed, flushed to disk), the PNG
+preview, and start-up (``hdrcam fuse --help`` in a fresh process) - and the ``hdrcam fuse`` command itself (a
+fresh process: start-up, fuse, the EXR and the preview). Medians of --repeats.
 Usage: python tools/bench_fuse.py [--bracket DIR] [--repeats 3] [--out tools/results/fuse-speed.md]
 """
 
@@ -25,8 +27,12 @@ from reports import add_report_options, publish  # noqa: E402
 import rawpy
 
 import hdrcam
+from hdrcam.cli.fuse_command import PREVIEW_SIDE_PX
 from hdrcam.hdr.bracket_input import bracket_paths
+from hdrcam.io.exr import write_exr_channels
+from hdrcam.io.png import write_png
 from hdrcam.parallel import worker_threads
+from hdrcam.preview import reduced_for_preview, tonemap_rgb
 
 PROFILE = "sony-a7-zeiss50-rank1"
 
@@ -45,13 +51,25 @@ def seconds(function) -> float:
 
 def measure(bracket: Path, repeats: int, scratch: Path) -> list[str]:
     paths = bracket_paths([bracket])
-    command = [str(Path(sys.executable).parent / "hdrcam"), "fuse", str(bracket), "--profile", PROFILE,
-               "--overwrite", "--out", str(scratch / "fused.exr")]
-    runs: dict[str, list[float]] = {"rawpy read": [], "hdrcam.fuse": [], "hdrcam fuse (command)": []}
+    hdrcam_command = str(Path(sys.executable).parent / "hdrcam")
+    command = [hdrcam_command, "fuse", str(bracket), "--profile", PROFILE, "--overwrite", "--out",
+               str(scratch / "fused.exr")]
+    runs: dict[str, list[float]] = {label: [] for label in (
+        "rawpy read", "hdrcam.fuse", "+ EXR write", "+ PNG preview", "+ start-up (`hdrcam fuse --help`)",
+        "hdrcam fuse (command)")}
     load_before = os.getloadavg()[0]
     for _ in range(repeats):
         runs["rawpy read"].append(seconds(lambda: read_with_rawpy(paths)))
-        runs["hdrcam.fuse"].append(seconds(lambda: hdrcam.fuse([bracket], profile=PROFILE)))
+        started = time.perf_counter()
+        image = hdrcam.fuse([bracket], profile=PROFILE)
+        runs["hdrcam.fuse"].append(time.perf_counter() - started)
+        runs["+ EXR write"].append(seconds(lambda: write_exr_channels(
+            scratch / "library.exr", {"RGB": image.rgb, "clipped": image.clipped}, overwrite=True, compression="none")))
+        runs["+ PNG preview"].append(seconds(lambda: write_png(
+            scratch / "library.png", tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), overwrite=True)))
+        del image
+        runs["+ start-up (`hdrcam fuse --help`)"].append(seconds(lambda: subprocess.run(
+            [hdrcam_command, "fuse", "--help"], check=True, stdout=subprocess.DEVNULL)))
         runs["hdrcam fuse (command)"].append(seconds(lambda: subprocess.run(command, check=True,
                                                                            stdout=subprocess.DEVNULL)))
     floor = statistics.median(runs["rawpy read"])

@@ -21,7 +21,7 @@ from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import clipped_samples
+from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
@@ -75,7 +75,7 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per second at ISO 100.
     """
     frames = read_bracket(sources)
-    if all(clipped_samples(frame.bayer_dn, frame.clip_level_tile_dn).all() for frame in frames):
+    if all(all_clipped(frame.bayer_dn, frame.clip_level_tile_dn) for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks), with_variance=with_variance)
     meta = frames[0].metadata

@@ -55,6 +55,12 @@ def clipped_samples(bayer_dn: np.ndarray, clip_tile_dn: np.ndarray) -> np.ndarra
     return mask
 
 
+def all_clipped(bayer_dn: np.ndarray, clip_tile_dn: np.ndarray) -> bool:
+    """True when every sample is at or above its CFA position's clip level (each position's minimum; no mask)."""
+    return all(bayer_dn[row::2, column::2].min(initial=np.iinfo(bayer_dn.dtype).max) >= clip_tile_dn[row, column]
+               for row in range(2) for column in range(2))
+
+
 def tiled(tile: np.ndarray, height: int, width: int) -> np.ndarray:
     """A 2 x 2 tile repeated over H x W (float32)."""
     return np.tile(np.asarray(tile, np.float32), ((height + 1) // 2, (width + 1) // 2))[:height, :width]
