@@ -44,7 +44,7 @@ class CompiledForward:
         from hdrcam.recon.export import onnx_bytes
 
         self.threads = threads
-        self.weights = [value.detach().clone() for value in network.state_dict().values()]
+        self.weights = _weights(network)
         core = openvino.Core()
         # threads not pinned to cores: as fast on an idle CPU, less slowed when other processes share the cores
         self.compiled = core.compile_model(core.read_model(onnx_bytes(network)), "CPU", {
@@ -54,13 +54,30 @@ class CompiledForward:
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
         """Whether the compiled model still runs ``network``'s current weights on ``threads`` threads."""
-        current = list(network.state_dict().values())
-        return threads == self.threads and len(current) == len(self.weights) and all(
-            a.shape == b.shape and torch.equal(a, b) for a, b in zip(current, self.weights))
+        current = _weights(network, copy=False)
+        return threads == self.threads and current.keys() == self.weights.keys() and all(
+            _same(current[key], self.weights[key]) for key in current)
 
     def __call__(self, ldr: torch.Tensor) -> torch.Tensor:
         array = np.ascontiguousarray(ldr.detach().numpy(), np.float32)
         return torch.from_numpy(np.array(self.request.infer({0: array})[self.compiled.output(0)]))
+
+
+def _weights(network: ReconstructionNet, copy: bool = True) -> dict[str, torch.Tensor | tuple[int, int]]:
+    """What the compiled model depends on: the trainable weights by value (copied unless ``copy`` is False), the
+    frozen VGG-19's (paper preset; ~80 MB, never trained) by identity - storage address and version counter."""
+    trainable = network.trainable_state()
+    weights: dict[str, torch.Tensor | tuple[int, int]] = {
+        key: value.detach().clone() if copy else value for key, value in trainable.items()}
+    weights.update({key: (value.data_ptr(), value._version) for key, value in network.state_dict().items()
+                    if key not in trainable})
+    return weights
+
+
+def _same(current: torch.Tensor | tuple[int, int], compiled: torch.Tensor | tuple[int, int]) -> bool:
+    if isinstance(current, tuple) or isinstance(compiled, tuple):
+        return current == compiled
+    return current.shape == compiled.shape and torch.equal(current, compiled)
 
 
 def _plain(network) -> Callable[[torch.Tensor], torch.Tensor]:

@@ -66,3 +66,23 @@ def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch)
         plain, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
     assert not np.array_equal(plain, frame)
     np.testing.assert_allclose(optimised, plain, rtol=1e-4, atol=1e-4)
+
+
+def test_the_compiled_forward_keeps_the_trainable_weights_and_only_the_identity_of_the_frozen_vgg():
+    """The paper preset's VGG-19 (~80 MB, frozen) is not copied; an in-place change to it still counts as a change."""
+    from hdrcam.recon.vgg import load_vgg19
+
+    network = ReconstructionNet(preset("paper"), vgg=load_vgg19(random_features=True)).eval()
+    weights = cpu_forward._weights(network)
+    vgg_keys = [key for key in network.state_dict() if key.startswith("splitting.vgg.")]
+    assert vgg_keys and all(isinstance(weights[key], tuple) for key in vgg_keys)
+    assert all(isinstance(weights[key], torch.Tensor) for key in network.trainable_state())
+
+    def unchanged() -> bool:
+        return all(cpu_forward._same(value, weights[key])
+                   for key, value in cpu_forward._weights(network, copy=False).items())
+
+    assert unchanged()
+    with torch.no_grad():
+        next(network.splitting.vgg.parameters()).mul_(1.5)
+    assert not unchanged()
