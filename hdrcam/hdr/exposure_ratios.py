@@ -94,8 +94,10 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
             counts[k] = int(totals[k, 0])
             if counts[k] < MIN_RATIO_SAMPLES or totals[k, 1] <= 0:
                 refining.remove(k)
-            else:
-                ratios[k] = float(totals[k, 2] / totals[k, 1])
+                continue
+            ratios[k] = float(totals[k, 2] / totals[k, 1])
+            if ratios[k] <= 1.0:  # the longer frame no brighter: no bound follows from it; the label is used
+                refining.remove(k)
     for k in range(pairs):
         if counts[k] < MIN_RATIO_SAMPLES or ratios[k] <= 1.0:
             notes.append(f"frames {k}-{k + 1}: only {counts[k]} pixels usable in both; using the labelled ratio "

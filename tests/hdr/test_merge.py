@@ -144,3 +144,26 @@ def test_bad_brackets_are_refused_without_writing(tmp_path, capsys):
     out = tmp_path / "out.exr"
     assert main(["fuse", str(a[0]), str(damaged), "--out", str(out), "--profile", "simulated"]) == 1
     assert "damaged.dng" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_longer_frame_that_is_no_brighter_keeps_the_labelled_ratio():
+    """A pair whose longer frame sums to nothing (a cap left on, a frame from another scene) gives no ratio and no
+    bound to refine from: the label stands, with a note."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hdrcam.hdr.exposure_ratios import estimate_exposures
+
+    shape = (32, 40)
+    shorter, longer = np.full(shape, 100.0, np.float32), np.zeros(shape, np.float32)
+    longest = np.full(shape, 3000.0, np.float32)
+    unclipped = np.zeros(shape, bool)
+
+    def strip_data(rows):
+        return [shorter[rows], longer[rows], longest[rows]], [unclipped[rows]] * 3
+
+    notes: list[str] = []
+    labelled = np.array([0.001, 0.004, 0.016])
+    with ThreadPoolExecutor(2) as pool:
+        exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 15000.0, 3.0, notes, pool)
+    assert exposures[1] / exposures[0] == pytest.approx(4.0)
+    assert "using the labelled ratio" in notes[0]
