@@ -6,7 +6,7 @@ start=runs/real-rank1-fast-6000.pt  # the shipped network when this leg started 
 [ -f $start ] || { mkdir -p runs && git show 417f97e:hdrcam/checkpoints/simulated-rank1-fast.pt > $start; }
 run=runs/real-rank1-fast-256
 resume=""; [ -f $run/checkpoint.pt ] && resume="--resume"
-OMP_NUM_THREADS=${OMP_NUM_THREADS:-2} exec .venv/bin/hdrcam finetune --checkpoint $start \
+OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} exec .venv/bin/hdrcam finetune --checkpoint $start \
   --psf tools/results/shipped-rank1/psf.exr \
   --data runs/data/train:0.6,procedural:0.3,../shared/data/hdr:0.1 \
-  --steps 4500 --batch 2 --crop 256 --lr 2e-4 --seed 3 --checkpoint-every 250 --out $run $resume
+  --steps 3500 --batch 2 --crop 256 --lr 2e-4 --seed 3 --checkpoint-every 250 --out $run $resume
