@@ -9,13 +9,12 @@ import importlib
 import os
 import signal
 import sys
-import threading
 import traceback
 import warnings
 
 from hdrcam import __version__
-from hdrcam.errors import (EXIT_BUG, EXIT_FAILURE, EXIT_USAGE, HdrcamError, Interrupted, StepFailed,
-                           failure_message, one_line)
+from hdrcam.errors import EXIT_BUG, EXIT_FAILURE, EXIT_USAGE, HdrcamError, StepFailed, failure_message, one_line
+from hdrcam.interrupts import termination_signals_raised
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -124,27 +123,6 @@ def _stdout_guarded():
         yield
     finally:
         sys.stdout = stream
-
-
-@contextlib.contextmanager
-def termination_signals_raised():
-    """SIGINT, SIGTERM and SIGHUP raise :class:`hdrcam.errors.Interrupted` (a KeyboardInterrupt) while a command
-    runs, so every ``finally`` and cleanup handler runs before the process ends; the previous handlers return
-    afterwards."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def raise_interrupted(number, frame):
-        raise Interrupted(number)
-
-    previous = {number: signal.signal(number, raise_interrupted) for number in (signal.SIGINT, signal.SIGTERM,
-                                                                             signal.SIGHUP)}
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -8,7 +8,9 @@ never touched; only ``overwrite=True`` replaces, and then by an atomic rename of
 old bytes stay whole until the new ones are complete (and an input hard-linked elsewhere keeps its bytes).
 
 A failure of any kind - an exception, a full disk, SIGINT or SIGTERM (which ``hdrcam.cli.main`` turns into
-an exception) - removes the temporary file, and never leaves a partial file under the final name.
+an exception) - removes the temporary file, and never leaves a partial file under the final name. Creating
+the temporary file, and publishing it then removing its temporary name, run with signals deferred
+(:func:`hdrcam.interrupts.interrupts_deferred`), so a signal cannot fall between the two.
 Operating-system errors raised while writing name the final path, not the temporary one.
 """
 
@@ -22,6 +24,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from hdrcam.errors import OutputExistsError
+from hdrcam.interrupts import interrupts_deferred
 
 _NO_HARD_LINKS = {errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK, errno.ENOSYS}
 TEMPORARY_SUFFIX = ".part"
@@ -91,15 +94,18 @@ def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
     path = check_writable(Path(path), overwrite=overwrite)
     temporary_path = None
     try:
-        _make_folder(path.parent)
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.stem[:80]}.",
-                                             suffix=f"{TEMPORARY_SUFFIX}{path.suffix[:20]}", dir=path.parent)
-        os.close(handle)
-        temporary_path = Path(temporary)
+        with interrupts_deferred():  # a signal here is raised once temporary_path names the file to remove
+            _make_folder(path.parent)
+            handle, temporary = tempfile.mkstemp(prefix=f".{path.stem[:80]}.",
+                                                 suffix=f"{TEMPORARY_SUFFIX}{path.suffix[:20]}", dir=path.parent)
+            os.close(handle)
+            temporary_path = Path(temporary)
         yield temporary_path
         os.chmod(temporary_path, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
         _flush_to_disk(temporary_path)
-        _publish(temporary_path, path, overwrite)
+        with interrupts_deferred():  # publish and remove the temporary name as one step
+            _publish(temporary_path, path, overwrite)
+            temporary_path.unlink(missing_ok=True)
     except OSError as error:
         _name_the_output(error, path, temporary_path)
         raise
