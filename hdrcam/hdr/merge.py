@@ -87,18 +87,11 @@ class BayerMerge:
             return np.where(information > 0, self.to_relative ** 2 / information, np.inf)
 
 
-def black_subtracted(frame: RawFrame, dark: RawFrame | None = None, rows: slice = slice(None)) -> np.ndarray:
-    """Signal in DN above black (float32) of ``rows`` (a slice with step 1); a dark frame, when given, replaces
-    the black level."""
-    bayer = frame.bayer_dn[rows].astype(np.float32)
-    if dark is not None:
-        if dark.bayer_dn.shape != frame.bayer_dn.shape:
-            raise InputError(f"{dark.metadata.path}: dark frame size {dark.bayer_dn.shape} differs from "
-                             f"{frame.bayer_dn.shape}")
-        return bayer - dark.bayer_dn[rows].astype(np.float32)
-    top = rows.indices(frame.bayer_dn.shape[0])[0]
-    height, width = bayer.shape
-    return bayer - tiled(np.roll(frame.metadata.black_level_tile(), -(top % 2), axis=0), height, width)
+def black_subtracted(frame: RawFrame) -> np.ndarray:
+    """The whole frame's signal in DN above its black level (float32; black per CFA position). The merge
+    itself subtracts strip by strip, or a dark frame instead (:class:`_BracketStrips`)."""
+    height, width = frame.bayer_dn.shape
+    return np.subtract(frame.bayer_dn, tiled(frame.metadata.black_level_tile(), height, width), dtype=np.float32)
 
 
 def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:
