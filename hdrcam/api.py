@@ -16,6 +16,7 @@ import torch
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
+from hdrcam.recon.mirror_agreement import mirror_agreed, mirrored_region, psf_mirror
 from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
@@ -28,7 +29,7 @@ class Reconstruction:
     white at the frame's exposure."""
 
     hdr: np.ndarray  # H x W x 3: the reconstruction
-    network_hdr: np.ndarray  # H x W x 3: the network's output before the frame checked it
+    network_hdr: np.ndarray  # H x W x 3: the network's output (both passes agreed) before the frame checked it
     confidence: np.ndarray  # H x W in [0, 1]: 1 = the frame supports the value (or recorded it); 0 = fell back
     tiles: TileReport
     consistency: ConsistencyReport
@@ -42,8 +43,8 @@ class Reconstruction:
 
 def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None, noise: NoiseModel | None = None,
                 adaptive: bool = True, tile_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
-                streak_fit: bool = False, device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32,
-                progress=None, regions=None) -> Reconstruction:
+                streak_fit: bool = False, mirror_check: bool = True, device: torch.device | str = "cpu",
+                dtype: torch.dtype = torch.float32, progress=None, regions=None) -> Reconstruction:
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
@@ -53,7 +54,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
     one).
 
-    Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); optionally the
+    Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
+    (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint
+    is kept (their per-pixel minimum, hdrcam.recon.mirror_agreement; twice the network time); optionally the
     streak fit refits each blob's brightness (hdrcam.recon.highlight_refinement; off by default: it raised
     highlights past the truth on real photographs); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
@@ -74,10 +77,19 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
-    network_hdr, tiles = reconstruct_frame(model.network, frame, psf_radius_px=psf.shape[-1] // 2,
-                                           adaptive=adaptive, core_px=tile_px, halo_px=halo_px,
-                                           device=torch.device(device), dtype=dtype, progress=progress,
-                                           regions=regions)
+    reports = []
+
+    def network_pass(image: np.ndarray, mirror: str | None) -> np.ndarray:
+        planned = regions if regions is None or mirror is None else \
+            [mirrored_region(region, mirror, image.shape[:2]) for region in regions]
+        hdr, report = reconstruct_frame(model.network, image, psf_radius_px=psf.shape[-1] // 2, adaptive=adaptive,
+                                        core_px=tile_px, halo_px=halo_px, device=torch.device(device),
+                                        dtype=dtype, progress=progress, regions=planned)
+        reports.append(report)
+        return hdr
+
+    network_hdr = mirror_agreed(network_pass, frame, psf_mirror(psf) if mirror_check else None)
+    tiles = reports[0] if len(reports) == 1 else reports[0].with_mirror_pass(reports[1])
     estimate, fit_summary = network_hdr, "off"
     if streak_fit:
         estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))

@@ -154,7 +154,8 @@ def radiometric_check(dng: Path, frame: np.ndarray, expected: np.ndarray, margin
             "rgb_median_abs_rel": float(np.median(np.abs(rgb_relative)))}
 
 
-def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: int, work: Path) -> dict:
+def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: int, work: Path,
+              reconstruct_options: list[str]) -> dict:
     psf = model.psf.astype(np.float32)
     margin = psf.shape[-1] // 2
     crop = test_crop(path, index, margin)  # sRGB, 1.0 = clip, (512 + 2m)^2 x 3
@@ -175,7 +176,8 @@ def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: in
     if not math.isclose(shot["true_exposure_s"], t_true, rel_tol=1e-9):
         raise BenchError(f"{path.name}: the camera exposed {shot['true_exposure_s']:.6g} s, predicted {t_true:.6g} s")
     dng = folder / "capture" / shot["file"]
-    stdout = run_cli(["reconstruct", str(dng), "--out", str(folder / "recon"), "--checkpoint", str(checkpoint)])
+    stdout = run_cli(["reconstruct", str(dng), "--out", str(folder / "recon"), "--checkpoint", str(checkpoint),
+                      *reconstruct_options])
     report = json.loads(stdout.strip().splitlines()[-1])
     hdr = read_exr(Path(report["hdr"])).rgb()
     frame = read_ldr_frame(dng)
@@ -195,7 +197,9 @@ def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: in
 
 def table(rows: list[dict], arguments, checkpoint: Path, seconds: float) -> str:
     lines = [f"RAW path on {arguments.folder} ({len(rows)} photographs, {SIZE_PX} px test crops as `hdrcam "
-             f"evaluate`), checkpoint {checkpoint}, noise seed {arguments.seed}; truth in camera RGB (colour "
+             f"evaluate`), checkpoint {checkpoint}"
+             f"{' (reconstruct --no-mirror-check)' if arguments.no_mirror_check else ''}, "
+             f"noise seed {arguments.seed}; truth in camera RGB (colour "
              "matrix of the simulated A7 applied), 1.0 = DNG white. PSNR linear, peak 2^8.", "",
              "| photograph | LDR dB | reconstruct dB | gain dB | LDR PU21 | reconstruct PU21 |",
              "|---|---|---|---|---|---|"]
@@ -228,6 +232,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=None, help="markdown file for the tables")
     parser.add_argument("--count", type=int, default=None, help="only the first N photographs")
     parser.add_argument("--seed", type=int, default=0, help="simulated camera seed (noise, shutter error, defects)")
+    parser.add_argument("--no-mirror-check", action="store_true", help="pass --no-mirror-check to reconstruct")
     arguments = parser.parse_args()
     if arguments.count is not None and arguments.count < 1:
         parser.error(f"--count must be at least 1, got {arguments.count}")
@@ -240,7 +245,8 @@ def main() -> int:
         rows = []
         with tempfile.TemporaryDirectory(prefix="bench_raw_path_") as work:
             for index, path in enumerate(files):
-                rows.append(bench_one(path, index, model, checkpoint, profile, arguments.seed, Path(work)))
+                rows.append(bench_one(path, index, model, checkpoint, profile, arguments.seed, Path(work),
+                                      ["--no-mirror-check"] if arguments.no_mirror_check else []))
                 row = rows[-1]
                 print(f"{row['name']}: LDR {row['ldr']:.2f} dB, reconstruct {row['recon']:.2f} dB, Bayer median "
                       f"rel {100 * row['bayer_median_rel']:+.3f} %, z {row['z_mean']:+.3f} +- {row['z_std']:.3f}",

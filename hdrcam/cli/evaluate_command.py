@@ -22,6 +22,8 @@ def register(commands) -> None:
     parser.add_argument("--size", type=positive_int, default=512, metavar="PX", help="test crop (multiple of 16)")
     parser.add_argument("--count", type=positive_int, default=16, help="procedural test scenes (default 16)")
     parser.add_argument("--seed", type=int, default=0, help="noise seed of the captures")
+    parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
+                        help="score reconstruct's one-pass option (no mirror-image second opinion)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
@@ -66,7 +68,8 @@ def run(arguments: argparse.Namespace) -> int:
     started = time.perf_counter()
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
-                                         seed=arguments.seed, progress=progress)
+                                         seed=arguments.seed, mirror_check=arguments.mirror_check,
+                                         progress=progress)
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "

@@ -32,6 +32,9 @@ def register(commands) -> None:
     parser.add_argument("--streak-fit", action="store_true",
                         help="before the consistency check, refit each clipped blob's brightness to the streaks "
                              "by least squares (off by default: on real photographs it overshoots, see README)")
+    parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
+                        help="one network pass instead of two (the frame and its mirror image, keeping only what "
+                             "both paint): half the network time, more invented highlights (see README)")
     parser.add_argument("--tile", type=positive_int, default=DEFAULT_CORE_PX, metavar="PX",
                         help=f"largest tile core (default {DEFAULT_CORE_PX}; bounds memory)")
     parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
@@ -65,6 +68,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
+    from hdrcam.recon.mirror_agreement import psf_mirror
     from hdrcam.api import reconstruct
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
@@ -93,11 +97,14 @@ def run(arguments: argparse.Namespace) -> int:
     frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
-    progress = tqdm(total=sum(region.windows for plan in plans for region in plan), desc="reconstruct", unit="window")
+    passes = 2 if arguments.mirror_check and psf_mirror(psf) else 1
+    progress = tqdm(total=passes * sum(region.windows for plan in plans for region in plan), desc="reconstruct",
+                    unit="window")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
+                             mirror_check=arguments.mirror_check,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():

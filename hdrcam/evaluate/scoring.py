@@ -9,7 +9,8 @@ paper's test protocol). Each scene is captured with the same noise seed for ever
 - one row per checkpoint (its label): :func:`hdrcam.api.reconstruct`, the function ``reconstruct`` and
   ``demo`` call, with its defaults: the network's highlights kept as far as the frame supports them
   (:mod:`hdrcam.recon.consistency`), the unclipped pixels the frame less the highlights' spill;
-- ``LABEL-network``: the network's output alone, before the frame checked it.
+- ``LABEL-network``: the network's output alone (its two mirror passes agreed, where used), before the frame
+  checked it.
 """
 
 from __future__ import annotations
@@ -52,9 +53,10 @@ def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
 
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
-                    psf: np.ndarray | None = None, seed: int = 0, examples: int = 3,
+                    psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
                     progress=None) -> tuple[list[ScoredImage], list[Example]]:
-    """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs."""
+    """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
+    ``mirror_check``: :func:`hdrcam.api.reconstruct`'s option of that name."""
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
     captures = {label: OpticalCapture(load_profile(model.profile), psf=capture_psfs[label])
                 for label, model in models.items()}
@@ -73,7 +75,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             with torch.no_grad():
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
-            result = reconstruct(frame, model, psf=capture_psfs[label])
+            result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check)
             if label == first:
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, result.network_hdr)

@@ -68,13 +68,21 @@ class TileReport:
     full_frame_network_pixels: int  # the same for full-frame processing
     clipped_pixels: int
     seconds: float
+    passes: int = 1  # 2: the frame and its mirror image (hdrcam.recon.mirror_agreement); counts above are totals
 
     def summary(self) -> str:
         if self.windows_run == 0:
             return f"no clipped pixels: highlight recovery skipped ({self.windows} windows passed through)"
-        share = 100.0 * self.network_pixels / self.full_frame_network_pixels
-        return (f"{self.clipped_pixels} clipped pixels; network ran on {self.windows_run} windows, "
+        share = 100.0 * self.network_pixels / (self.full_frame_network_pixels * self.passes)
+        passes = " in 2 passes (the frame and its mirror image)" if self.passes == 2 else ""
+        return (f"{self.clipped_pixels} clipped pixels; network ran on {self.windows_run} windows{passes}, "
                 f"{share:.0f} % of the pixels full-frame processing ({self.windows} windows) would run")
+
+    def with_mirror_pass(self, mirror_pass: TileReport) -> TileReport:
+        """This pass's report with a mirror pass's windows, pixels and seconds added."""
+        return dataclasses.replace(self, windows_run=self.windows_run + mirror_pass.windows_run,
+                                   network_pixels=self.network_pixels + mirror_pass.network_pixels,
+                                   seconds=self.seconds + mirror_pass.seconds, passes=self.passes + 1)
 
 
 def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:

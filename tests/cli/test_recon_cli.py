@@ -89,7 +89,7 @@ def test_reconstruct_writes_hdr_mask_confidence_and_previews(night_frame, tmp_pa
     frame = read_exr(night_frame / "frame.exr").rgb()
     assert confidence.min() >= 0.0 and confidence.max() <= 1.0
     assert np.all(confidence[frame.max(axis=-1) < 0.99] == 1.0)  # what the frame recorded is never doubted
-    assert "windows" in report["work"] and 0.0 <= report["fallback_fraction"] <= 1.0
+    assert "windows in 2 passes" in report["work"] and 0.0 <= report["fallback_fraction"] <= 1.0
     assert result.attributes["fallback_fraction"] == pytest.approx(report["fallback_fraction"], abs=1e-6)
     before = (out / "frame.exr").read_bytes()
     assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
@@ -109,6 +109,13 @@ def test_reconstruct_takes_any_tile_and_halo_and_scores_alike(night_frame, tmp_p
     scores = [psnr_linear(output, truth) for output in outputs]
     assert outputs[1].shape == truth.shape and np.isfinite(outputs[1]).all()
     assert abs(scores[0] - scores[1]) < 1.0
+
+
+def test_reconstruct_without_the_mirror_check_runs_one_pass(night_frame, tmp_path, capsys):
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path), "--no-mirror-check"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "windows" in report["work"] and "passes" not in report["work"]
+    assert np.isfinite(read_exr(tmp_path / "frame.exr").rgb()).all()
 
 
 def test_reconstruct_reads_16_bit_tiff(tmp_path):

@@ -370,7 +370,8 @@ def test_the_evidence_band_reaches_as_far_as_the_psf_spreads_its_light():
 
 @pytest.mark.xfail(strict=True, reason="known failure (tools/results/real-data/README.md, 'Where the judge "
                    "leaks'): the network paints a window onto an overcast sky up to 14 x white and the frame cannot "
-                   "refute it; strict, so a fix shows up as a failure to remove this mark")
+                   "refute it (-8.6 dB; -3.0 with the mirror agreement); strict, so a fix shows up as a failure "
+                   "to remove this mark")
 def test_a_real_window_onto_an_overcast_sky_is_not_made_worse_than_the_frame(tmp_path, shared_data):
     """The paper's test protocol on one real photograph (a training photograph: the network saw it)."""
     from hdrcam.data.scenes import SceneSource
