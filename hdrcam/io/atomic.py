@@ -106,6 +106,7 @@ def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
         with interrupts_deferred():  # publish and remove the temporary name as one step
             _publish(temporary_path, path, overwrite)
             temporary_path.unlink(missing_ok=True)
+            temporary_path = None  # published: nothing left for the cleanup below
     except OSError as error:
         _name_the_output(error, path, temporary_path)
         raise
