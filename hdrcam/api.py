@@ -99,6 +99,14 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
 
 
+def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True) -> int:
+    """How many windows :func:`reconstruct` with ``regions`` (hdrcam.recon.tiling.plan_regions of the frame) runs
+    the network on: each region's windows, twice when ``mirror_check`` and the (3, k, k) PSF equals its mirror
+    image (a progress bar's total)."""
+    passes = 2 if mirror_check and psf_mirror(np.asarray(psf, np.float32)) else 1
+    return passes * sum(region.windows for region in regions)
+
+
 def _profile_noise(model) -> NoiseModel:
     """The shot and read noise of the camera in the model's capture profile (NoiseModel() without one)."""
     if not getattr(model, "profile", None):

@@ -68,8 +68,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.recon.mirror_agreement import psf_mirror
-    from hdrcam.api import reconstruct
+    from hdrcam.api import network_windows, reconstruct
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
     from hdrcam.train.checkpoint import TrainedModel, load_model
@@ -97,9 +96,8 @@ def run(arguments: argparse.Namespace) -> int:
     frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
-    passes = 2 if arguments.mirror_check and psf_mirror(psf) else 1
-    progress = tqdm(total=passes * sum(region.windows for plan in plans for region in plan), desc="reconstruct",
-                    unit="window")
+    progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check) for plan in plans),
+                    desc="reconstruct", unit="window")
     for source, frame, plan in zip(arguments.inputs, frames, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,

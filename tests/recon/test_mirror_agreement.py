@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hdrcam.api import reconstruct
+from hdrcam.api import network_windows, reconstruct
 from hdrcam.recon.mirror_agreement import MIRROR_TOLERANCE, mirror_agreed, mirrored, mirrored_region, psf_mirror
 from hdrcam.recon.tiling import clipped_mask, plan_regions, reconstruct_frame
 from hdrcam.train.checkpoint import load_model
@@ -83,3 +83,28 @@ def test_reconstruct_keeps_the_minimum_of_the_frame_and_its_mirror_image():
     assert single.tiles.passes == 1 and np.allclose(single.network_hdr, direct, atol=1e-6)
     one_sided = reconstruct(frame, model, psf=spike_psf((2, 3), size=model.psf.shape[-1]))
     assert one_sided.tiles.passes == 1
+
+
+class _CountingProgress:
+    def __init__(self):
+        self.windows = 0
+
+    def update(self, windows: int = 1) -> None:
+        self.windows += windows
+
+
+def test_network_windows_counts_the_windows_reconstruct_runs():
+    """The progress bar's total (hdrcam.api.network_windows) is what reconstruct reports to it, with and without
+    the mirror pass and for a PSF that respects no mirror."""
+    model = load_model()
+    frame = np.full((64, 160, 3), 0.3, np.float32)
+    frame[20:26, 20:30] = 1.0
+    frame[40:44, 130:140] = 1.0
+    radius = model.psf.shape[-1] // 2
+    regions = plan_regions(frame, psf_radius_px=radius)
+    lopsided = spike_psf((2, 3), size=model.psf.shape[-1])
+    for psf, mirror_check, passes in ((model.psf, True, 2), (model.psf, False, 1), (lopsided, True, 1)):
+        progress = _CountingProgress()
+        reconstruct(frame, model, psf=psf, mirror_check=mirror_check, progress=progress, regions=regions)
+        expected = network_windows(regions, psf, mirror_check=mirror_check)
+        assert progress.windows == expected == passes * sum(region.windows for region in regions) > 0
