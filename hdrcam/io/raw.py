@@ -28,6 +28,7 @@ import datetime as dt
 import functools
 import os
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -208,19 +209,36 @@ def _usable(matrix: np.ndarray | None) -> bool:
         and abs(float(np.linalg.det(matrix))) > _MIN_MATRIX_DETERMINANT
 
 
+_silencing = threading.Lock()  # guards the two below: file descriptor 2 is shared by every thread
+_silenced_readers = 0
+_saved_stderr_fd: int | None = None
+
+
 @contextlib.contextmanager
 def _libraw_stderr_silenced():
     """Send file descriptor 2 to /dev/null while LibRaw runs: its C code prints its own lines (e.g.
-    "Unexpected end of file") for damaged files, which hdrcam already reports in one line of its own."""
-    sys.stderr.flush()
-    saved = os.dup(2)
+    "Unexpected end of file") for damaged files, which hdrcam already reports in one line of its own.
+
+    Frames are decoded on several threads at once and the descriptor is the process's: the first reader in
+    saves it, the last one out restores it (each saving and restoring its own would let a reader save the
+    silenced descriptor and restore it last, and every later error line would be lost)."""
+    global _silenced_readers, _saved_stderr_fd
+    with _silencing:
+        if _silenced_readers == 0:
+            sys.stderr.flush()
+            _saved_stderr_fd = os.dup(2)
+            with open(os.devnull, "w") as null:
+                os.dup2(null.fileno(), 2)
+        _silenced_readers += 1
     try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
         yield
     finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+        with _silencing:
+            _silenced_readers -= 1
+            if _silenced_readers == 0:
+                os.dup2(_saved_stderr_fd, 2)
+                os.close(_saved_stderr_fd)
+                _saved_stderr_fd = None
 
 
 @dataclasses.dataclass
