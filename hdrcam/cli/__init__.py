@@ -49,7 +49,16 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`."""
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(next((word for word in argv if not word.startswith("-")), None))
-    arguments = parser.parse_args(argv)
+    try:
+        with _stdout_guarded():
+            try:
+                arguments = parser.parse_args(argv)
+            except SystemExit:  # --help or --version printed (or a usage error): a lost text is a failure too
+                sys.stdout.flush()
+                raise
+    except StandardOutputError as error:
+        _report(f"hdrcam: error: {error}")
+        return EXIT_FAILURE
     warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {one_line(str(message))}\n"
     name = f"hdrcam {arguments.command}"
     try:
@@ -88,9 +97,12 @@ class _GuardedOutput:
     descriptor then points at /dev/null so that the interpreter's own flush at exit cannot fail again."""
 
     def __init__(self, stream):
-        self._stream = stream
+        self._stream = stream  # None when the process started with standard output closed
 
     def write(self, text: str) -> int:
+        if self._stream is None:
+            raise StandardOutputError("cannot write to standard output (it is closed); redirect it to a file or "
+                                      "/dev/null")
         try:
             return self._guarded(self._stream.write, text)
         except UnicodeEncodeError:  # a file name that is not valid in the terminal's encoding: escape it
@@ -98,7 +110,8 @@ class _GuardedOutput:
             return self._guarded(self._stream.write, text.encode(encoding, "backslashreplace").decode(encoding))
 
     def flush(self) -> None:
-        return self._guarded(self._stream.flush)
+        if self._stream is not None:  # nothing was written to a closed standard output
+            self._guarded(self._stream.flush)
 
     def __getattr__(self, name: str):
         return getattr(self._stream, name)

@@ -189,3 +189,24 @@ def test_a_full_standard_output_is_exit_1_in_one_line(workspace, tmp_path, capsy
     lines = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and len(lines) == 1 and "cannot write to standard output" in lines[0], lines
     assert temporaries(tmp_path) == []
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["fuse", "--help"]])
+def test_help_lost_on_a_full_standard_output_is_exit_1_in_one_line(argv, capsys, monkeypatch):
+    """`hdrcam --help > /dev/full`: argparse's own printing is checked as a command's is."""
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        status = main(argv)
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(lines) == 1 and "cannot write to standard output" in lines[0], lines
+
+
+def test_a_closed_standard_output_is_exit_1_in_one_line(workspace, tmp_path, capsys, monkeypatch):
+    """`hdrcam ... >&-`: Python starts with sys.stdout None; writing to it is the command's failure, not a bug."""
+    monkeypatch.setattr(sys, "stdout", None)
+    status = main(["fabricate", str(workspace.heightmap), "--profile", "simulated", "--out", str(tmp_path / "f")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(lines) == 1 and "standard output (it is closed)" in lines[0], lines
+    assert temporaries(tmp_path) == []
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main(["--help"]) == 1
