@@ -38,7 +38,7 @@ from hdrcam.optics.heightmap import HeightMap, feature_indices, sample_heightmap
 from hdrcam.optics.materials import refractive_index
 from hdrcam.optics.propagation import angular_spectrum_transfer, fresnel_transfer_axis, propagate
 from hdrcam.optics.spectrum import band_wavelengths_m
-from hdrcam.errors import TooLargeError
+from hdrcam.errors import InputError, TooLargeError
 from hdrcam.limits import check_memory
 from hdrcam.profiles import Profile, image_distance_m
 
@@ -82,6 +82,10 @@ class OpticalSetup:
         check_wavelength_samples(samples, simulation.band_edges_m)
         bands = tuple(tuple(float(w) for w in band_wavelengths_m(edges, samples)) for edges in simulation.band_edges_m)
         size = psf_size_px or simulation.psf_size_px
+        if simulation.propagation == "fraunhofer" and upsample is not None:
+            raise InputError(f"upsample {upsample}: samples per pixel set the grid of the fresnel and "
+                             f"angular_spectrum propagations; {profile.name}'s chirp-z (fraunhofer) propagation "
+                             f"always takes {FRAUNHOFER_SUBPIXELS} points per pixel (choose another propagation)")
         grid = None if simulation.propagation == "fraunhofer" else SimulationGrid.for_optics(
             pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
             focal_length_m=profile.lens.focal_length_m, shortest_wavelength_m=min(min(b) for b in bands),

@@ -105,3 +105,18 @@ def test_defocus_that_aliases_is_refused():
     from hdrcam.errors import SamplingError
     with pytest.raises(SamplingError, match="defocus"):
         _model(aperture_m=9.16e-3, feature_m=6e-6, features=1527, psf_size_px=11, source_distance_m=0.06)
+
+
+def test_samples_per_pixel_are_refused_for_chirp_z_rather_than_ignored():
+    """`hdrcam psf --upsample N` on a chirp-z profile used to run with its fixed points per pixel instead."""
+    from hdrcam.errors import InputError
+    from hdrcam.optics.fraunhofer import FRAUNHOFER_SUBPIXELS
+    from hdrcam.optics.psf import OpticalSetup
+    from hdrcam.profiles import load_profile
+
+    chirp_z = load_profile("sony-a7-zeiss50-rank1")
+    assert chirp_z.simulation.propagation == "fraunhofer"
+    with pytest.raises(InputError, match=f"{FRAUNHOFER_SUBPIXELS} points per pixel"):
+        OpticalSetup.from_profile(chirp_z, upsample=3)
+    assert OpticalSetup.from_profile(chirp_z).grid is None
+    assert OpticalSetup.from_profile(load_profile("simulated"), upsample=3).grid.upsample == 3
