@@ -368,6 +368,34 @@ def test_the_evidence_band_reaches_as_far_as_the_psf_spreads_its_light():
     assert evidence_outer_px(psf_with(0.005)) == EVIDENCE_INNER_PX + 1
 
 
+@pytest.mark.parametrize("too_bright", [2.0, 4.0, 16.0])
+def test_a_too_bright_lamp_whose_light_lands_beyond_its_edge_is_lowered_to_the_truth_not_below(too_bright):
+    """A 4 x 4 lamp at 40 x white on a flat 0.2 background, noiseless, through a PSF that sends 10 % of each
+    pixel's light to a square ring 6 px out. Proposed k times too bright, the judge must bring it to the truth:
+    the ring pixels it over-lights are lit by the whole lamp, so the whole lamp is lowered, not the edge pixels
+    nearest the ring (which left a peaked lamp that the evidence fit then cut to 0.3 / 0.005 of the truth)."""
+    from hdrcam.recon.consistency import make_consistent
+
+    psf = np.zeros((3, 15, 15), np.float32)
+    ring = np.zeros((15, 15), bool)
+    ring[1, 1:14] = ring[13, 1:14] = ring[1:14, 1] = ring[1:14, 13] = True
+    psf[:, ring] = 0.1 / ring.sum()
+    psf[:, 7, 7] = 0.9
+    truth = np.full((96, 96, 3), 0.2, np.float32)
+    truth[46:50, 46:50] = 40.0
+    frame = np.clip(fft_convolve(torch.from_numpy(truth.transpose(2, 0, 1).copy()), torch.from_numpy(psf))
+                    .numpy().transpose(1, 2, 0), 0.0, 1.0).astype(np.float32)
+    clipped = frame >= CLIP_LEVEL
+    assert clipped.any(axis=-1).sum() == 16  # the ring itself stays below white: it is the evidence
+    true_excess = np.where(clipped, truth - 1.0, 0.0)
+    proposal = np.where(clipped, 1.0 + too_bright * true_excess, frame).astype(np.float32)
+    kept, _, _ = make_consistent(frame, proposal, psf, noise=NoiseModel())
+    kept_excess = np.where(clipped, kept - 1.0, 0.0)
+    assert kept_excess.sum() == pytest.approx(true_excess.sum(), rel=0.05)
+    lamp = kept_excess[46:50, 46:50]
+    assert lamp.max() <= 1.1 * lamp.min()  # lowered as a whole: no peak left by the bound
+
+
 @pytest.mark.xfail(strict=True, reason="known failure (tools/results/real-data/README.md, 'Where the judge "
                    "leaks'): the network paints a window onto an overcast sky up to 14 x white and the frame cannot "
                    "refute it (-8.6 dB; -3.0 with the mirror agreement); strict, so a fix shows up as a failure "
