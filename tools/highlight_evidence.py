@@ -79,12 +79,18 @@ def labelled_path(text: str) -> tuple[str, str]:
     return label, path
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_test_set_options(parser: argparse.ArgumentParser, count: int) -> None:
+    """--data (a folder of photographs or 'procedural'), --checkpoint LABEL=PATH (repeatable) and --count."""
     parser.add_argument("--data", required=True, help="folder of .hdr/.exr photographs, or 'procedural'")
     parser.add_argument("--checkpoint", action="append", required=True, type=labelled_path,
-                        help="LABEL=PATH (repeatable)")
-    parser.add_argument("--count", type=int, default=14)
+                        help="LABEL=PATH (repeatable): the PSF and profile to capture through")
+    parser.add_argument("--count", type=int, default=count,
+                        help=f"night scenes for 'procedural' (default {count}; a folder: every image)")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_test_set_options(parser, count=14)
     add_report_options(parser, "tools/results/highlight-evidence.md")
     arguments = parser.parse_args()
     one_line_errors.refuse_existing(arguments.out, arguments.overwrite)

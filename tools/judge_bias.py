@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import one_line_errors  # noqa: E402
-from highlight_evidence import capture, labelled_path  # noqa: E402
+from highlight_evidence import add_test_set_options, capture  # noqa: E402
 from reports import add_report_options, publish  # noqa: E402
 
 from hdrcam.data.scenes import SceneSource
@@ -65,10 +65,7 @@ def kept_shares(frame: np.ndarray, truth: np.ndarray, psf: np.ndarray, noise: No
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", required=True, help="folder of .hdr/.exr photographs, or 'procedural'")
-    parser.add_argument("--checkpoint", action="append", required=True, type=labelled_path,
-                        help="LABEL=PATH (repeatable): the PSF and profile to capture through")
-    parser.add_argument("--count", type=int, default=16, help="night scenes for 'procedural' (a folder: every image)")
+    add_test_set_options(parser, count=16)
     parser.add_argument("--factors", type=factors, default=[0.25, 1.0, 4.0],
                         help="proposal = 1 + k (truth - 1) on clipped channels, for each k (default 0.25,1,4)")
     add_report_options(parser, "tools/results/judge-bias.md")
