@@ -36,7 +36,9 @@ def test_compiled_forward_equals_the_pytorch_forward():
     optimised = forward(ldr)
     error = float(torch.mean((optimised - expected) ** 2))
     assert error == 0.0 or 10 * math.log10(256.0 ** 2 / error) > 100.0  # PSNR at peak 2^8, as tools/bench.py
-    assert torch.allclose(optimised, expected, rtol=1e-4, atol=1e-4)
+    # float32 sums in another order: 1.9e-4 at a value of 1.0 on one thread (PyTorch's own order changes with the
+    # thread count); a wrong graph is off by far more than 1e-3
+    assert torch.allclose(optimised, expected, rtol=1e-4, atol=1e-3)
 
 
 def test_compiled_forward_is_reused_until_the_weights_change():
