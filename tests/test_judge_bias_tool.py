@@ -57,6 +57,6 @@ def test_without_a_psf_that_reaches_unclipped_pixels_nothing_above_white_is_kept
 
 def test_factors_are_positive_and_sorted():
     assert factors("4,0.25,1") == [0.25, 1.0, 4.0]
-    for text in ("", "1,-2", "a,b", "0"):
+    for text in ("", "1,-2", "a,b", "0", "inf", "1,nan"):
         with pytest.raises(Exception, match="positive numbers"):
             factors(text)

@@ -44,7 +44,7 @@ def factors(text: str) -> list[float]:
         values = [float(value) for value in text.split(",")]
     except ValueError:
         values = []
-    if not values or any(not value > 0 for value in values):
+    if not values or any(not 0 < value < float("inf") for value in values):
         raise argparse.ArgumentTypeError(f"expected positive numbers separated by commas, got {text!r}")
     return sorted(values)
 

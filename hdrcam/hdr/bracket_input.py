@@ -70,20 +70,22 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                 if digest is not None and digest.result() != expected:
                     raise InputError(f"{path}: changed since it was captured (its sha256 differs from the "
                                      "manifest's); restore the original frame")
-            frames = []
+            frames, skipped = [], []
             for (path, _), (_, read) in zip(files, work):
                 try:
                     frames.append(read.result())
                 except NotRawError as error:
                     if not from_folder:
                         raise
-                    warnings.warn(f"skipped {error}")
+                    skipped.append(error)
         except BaseException:
             for futures in work:
                 for future in futures:
                     if future is not None:
                         future.cancel()
             raise
+    for error in skipped:  # after the pool: while a frame decodes, LibRaw's silenced stderr would swallow them
+        warnings.warn(f"skipped {error}")
     if len(frames) < 1:
         raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
     frames.sort(key=lambda f: f.metadata.exposure_s)

@@ -226,9 +226,10 @@ def _libraw_stderr_silenced():
     with _silencing:
         if _silenced_readers == 0:
             sys.stderr.flush()
-            _saved_stderr_fd = os.dup(2)
-            with open(os.devnull, "w") as null:
+            with open(os.devnull, "w") as null:  # opened first: a failure leaves nothing to undo
+                saved = os.dup(2)
                 os.dup2(null.fileno(), 2)
+            _saved_stderr_fd = saved
         _silenced_readers += 1
     try:
         yield
