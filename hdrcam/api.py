@@ -94,7 +94,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     if streak_fit:
         estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
         fit_summary = fit.summary()
-    consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise or _profile_noise(model))
+    consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise or profile_noise(model))
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
 
@@ -107,7 +107,7 @@ def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True) -> i
     return passes * sum(region.windows for region in regions)
 
 
-def _profile_noise(model) -> NoiseModel:
+def profile_noise(model) -> NoiseModel:
     """The shot and read noise of the camera in the model's capture profile (NoiseModel() without one)."""
     if not getattr(model, "profile", None):
         return NoiseModel()

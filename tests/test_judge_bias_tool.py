@@ -12,16 +12,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 from judge_bias import factors, kept_shares  # noqa: E402
 
 from hdrcam.recon.consistency import NoiseModel  # noqa: E402
-from hdrcam.sensor import fft_convolve  # noqa: E402
+from tests.recon.test_do_no_harm import convolve  # noqa: E402
 from tests.test_highlight_evidence_tool import _psf  # noqa: E402
-
-
-def _frame(truth: np.ndarray, psf: np.ndarray) -> np.ndarray:
-    """The noiseless frame: truth through the PSF, clipped at white."""
-    import torch
-
-    blurred = fft_convolve(torch.from_numpy(truth.transpose(2, 0, 1).copy()), torch.from_numpy(psf))
-    return np.clip(blurred.numpy().transpose(1, 2, 0), 0.0, 1.0).astype(np.float32)
 
 
 def _far_ring_psf() -> np.ndarray:
@@ -40,7 +32,8 @@ def test_on_a_lamp_whose_streaks_are_seen_the_judge_keeps_a_dim_proposal_and_low
     truth = np.full((96, 96, 3), 0.2, np.float32)
     truth[46:50, 46:50] = 40.0  # a lamp far above white on a flat, dim background
     psf = _far_ring_psf()  # a tenth of the light 8 px out: unclipped ring pixels record it
-    total, (dim, exact, bright) = kept_shares(_frame(truth, psf), truth, psf, NoiseModel(), [0.25, 1.0, 4.0])
+    frame = np.clip(convolve(truth, psf), 0.0, 1.0)
+    total, (dim, exact, bright) = kept_shares(frame, truth, psf, NoiseModel(), [0.25, 1.0, 4.0])
     assert total > 0
     assert dim == pytest.approx(0.25, abs=0.02)  # never raised above what was proposed
     assert exact == pytest.approx(1.0, abs=0.1)
@@ -51,7 +44,7 @@ def test_without_a_psf_that_reaches_unclipped_pixels_nothing_above_white_is_kept
     truth = np.full((64, 64, 3), 0.2, np.float32)
     truth[30:34, 30:34] = 40.0
     dirac = _psf(0.0)
-    _, shares = kept_shares(_frame(truth, dirac), truth, dirac, NoiseModel(), [1.0, 4.0])
+    _, shares = kept_shares(np.clip(convolve(truth, dirac), 0.0, 1.0), truth, dirac, NoiseModel(), [1.0, 4.0])
     assert shares == [0.0, 0.0]
 
 

@@ -26,6 +26,7 @@ import one_line_errors  # noqa: E402
 from highlight_evidence import add_test_set_options, capture  # noqa: E402
 from reports import add_report_options, publish  # noqa: E402
 
+from hdrcam.api import profile_noise
 from hdrcam.data.scenes import SceneSource
 from hdrcam.profiles import load_profile
 from hdrcam.recon.consistency import NoiseModel, make_consistent
@@ -75,8 +76,7 @@ def main() -> int:
     labelled = dict(arguments.checkpoint)
     models = {label: load_model(path) for label, path in labelled.items()}
     optics = {label: OpticalCapture(load_profile(model.profile), psf=model.psf) for label, model in models.items()}
-    noises = {label: NoiseModel(load_profile(model.profile).camera.full_well_e,
-                                load_profile(model.profile).camera.read_noise_e) for label, model in models.items()}
+    noises = {label: profile_noise(model) for label, model in models.items()}
     margin = max(optics_model.margin_px for optics_model in optics.values())
     head = ["image", f"true excess ({next(iter(models))})"]
     head += [f"{label}: k={scale:g}" for label in models for scale in scales]
