@@ -30,7 +30,11 @@ only take that excess down, never up, so the result is never brighter than the p
   where the excess's light and the edge's are alike (a weak DOE, a small excess), z is small: fall back.
 - Shape. The frame constrains how much light a blob sends out, not how it is spread inside it: each pixel's
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
-  pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill.
+  pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
+  cluster whose evidence is strong (z >= STRONG_EVIDENCE_Z in some channel: its streaks confirm its light
+  beyond doubt, as a lamp's do) keeps the proposed shape: a lamp's core lies far above its blob's mean, and the
+  cap cost night scenes most of the judge's loss (tools/results/real-data/README.md, "Strong streak
+  evidence lifts the shape cap").
 
 A clipped pixel deep inside a large clipped region sends no light to any unclipped pixel: only the evidence
 of its cluster's edge and the network's prior (trained on real photographs, hdrcam.data.scenes) decide it.
@@ -61,6 +65,7 @@ TEXTURE_CORRELATION = 4.0  # neighbouring residuals are correlated (texture, PSF
 MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, the frame is kept
 MIN_WITNESS_PIXELS = 8  # a cluster whose light reaches fewer unclipped pixels has no evidence: the frame is kept
 SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean excess
+STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
 
 
@@ -116,6 +121,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     radius = psf.shape[-1] // 2
     outer_px = evidence_outer_px(psf)
     clusters = clipped_clusters(clipped, radius)
+    confirmed = np.zeros(clipped.shape, bool)  # clipped pixels of clusters with strong evidence: shape kept
     for crop, own in clusters:
         mine = clipped_channels[crop] & own[..., None]
         excess = np.where(mine, floored[crop] - 1.0, 0.0).astype(np.float32)
@@ -126,16 +132,19 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         spill = np.zeros_like(explained)
         kept_excess, spill[inner] = _bounded_excess(slack, unclipped[inner], excess, kernel)
         band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
-        kept_excess = kept_excess * _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
-                                                     _beyond_reimaged(spill, unclipped, kernel)[inner],
-                                                     _beyond_reimaged(band, unclipped, kernel)[inner],
-                                                     unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
+        shares, significance = _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
+                                                _beyond_reimaged(spill, unclipped, kernel)[inner],
+                                                _beyond_reimaged(band, unclipped, kernel)[inner],
+                                                unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
+        kept_excess = kept_excess * shares
+        if significance >= STRONG_EVIDENCE_Z:
+            confirmed[crop] |= own
         output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
         share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
         confidence[crop] = np.where(own, np.minimum(confidence[crop], share), confidence[crop])
         proposed += float(excess.sum())
         kept += float(kept_excess.sum())
-    output = _cap_shapes(output, clipped_channels, clipped)
+    output = _cap_shapes(output, clipped_channels, clipped, confirmed)
     fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back)
 
@@ -197,14 +206,16 @@ def evidence_outer_px(psf: np.ndarray) -> int:
 
 
 def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.ndarray, unclipped: np.ndarray,
-                     own: np.ndarray, sigma: np.ndarray, outer_px: int) -> np.ndarray:
+                     own: np.ndarray, sigma: np.ndarray, outer_px: int) -> tuple[np.ndarray, float]:
     """(3,) shares in [0, 1] of a cluster's excess that the light beyond its lens core supports (module
-    docstring, "Evidence"): ``observed`` = A(y - P 1_C), ``predicted`` = A(P * E), ``nuisance`` = A(P * D),
-    H x W x 3 each on the cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..``outer_px``
-    from ``own`` (the cluster's clipped pixels). ``sigma``: the frame's noise there."""
+    docstring, "Evidence"), and the largest of the channels' significances z (-inf where no channel was fitted):
+    ``observed`` = A(y - P 1_C), ``predicted`` = A(P * E), ``nuisance`` = A(P * D), H x W x 3 each on the
+    cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..``outer_px`` from ``own`` (the cluster's
+    clipped pixels). ``sigma``: the frame's noise there."""
     inner = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
     outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * outer_px + 1,) * 2, np.uint8)) > 0
     shares = np.ones(3, np.float32)
+    significance = -np.inf
     for channel in range(3):
         ring = outer & ~inner & unclipped[..., channel]
         signal = predicted[..., channel][ring].astype(np.float64)
@@ -223,7 +234,8 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
         amplitude_variance = float(np.linalg.pinv(design.T @ design)[0, 0]) * variance * TEXTURE_CORRELATION
         z = amplitude / np.sqrt(max(amplitude_variance, 1e-30))
         shares[channel] = min(1.0, amplitude * (1.0 - (Z_MIN / z) ** 2)) if z > Z_MIN else 0.0
-    return shares
+        significance = max(significance, z)
+    return shares, significance
 
 
 def _headroom(slack: np.ndarray, unclipped: np.ndarray, spill: np.ndarray) -> np.ndarray:
@@ -234,8 +246,10 @@ def _headroom(slack: np.ndarray, unclipped: np.ndarray, spill: np.ndarray) -> np
     return headroom
 
 
-def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.ndarray) -> np.ndarray:
-    """Each clipped channel's excess over 1 capped at SHAPE_CAP times its blob's mean excess in that channel."""
+def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.ndarray, exempt: np.ndarray
+                ) -> np.ndarray:
+    """Each clipped channel's excess over 1 capped at SHAPE_CAP times its blob's mean excess in that channel,
+    except on ``exempt`` pixels (H x W bool)."""
     blob_count, labels = cv2.connectedComponents(clipped.astype(np.uint8), connectivity=8)
     index = labels.ravel()
     capped = estimate.copy()
@@ -245,7 +259,7 @@ def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.
         pixels = np.bincount(index, weights=mine.ravel().astype(np.float64), minlength=blob_count)
         mean = np.bincount(index, weights=excess.ravel(), minlength=blob_count) / np.maximum(pixels, 1.0)
         limit = (SHAPE_CAP * mean)[labels]
-        capped[..., channel] = np.where(mine, 1.0 + np.minimum(excess, limit), estimate[..., channel])
+        capped[..., channel] = np.where(mine & ~exempt, 1.0 + np.minimum(excess, limit), estimate[..., channel])
     return capped.astype(np.float32)
 
 

@@ -434,3 +434,29 @@ def test_a_real_window_onto_an_overcast_sky_is_not_made_worse_than_the_frame(tmp
     rows, _ = evaluate_models({"hdrcam": load_model()}, SceneSource(tmp_path), size_px=512, count=1, examples=0)
     psnr_db = {row.method: row.metrics["psnr_linear"] for row in rows}
     assert psnr_db["hdrcam"] >= psnr_db["ldr"] - 0.3
+
+
+def test_a_lamp_whose_streaks_confirm_it_keeps_its_core_and_the_shape_cap_applies_without_that_evidence(
+        model, monkeypatch):
+    """A 7 x 7 lamp on 0.05 (noise as the camera's), its centre pixel at 400 x white over a rim at 3 x: the core is
+    ~50 x its blob's mean excess. Proposed exactly, through the shipped DOE, its streaks give the evidence
+    fit z far above STRONG_EVIDENCE_Z, so the judge keeps the core; with the exemption switched off the shape cap
+    cuts the core to SHAPE_CAP x the blob's mean (what cost night scenes most)."""
+    from hdrcam.recon import consistency
+
+    psf = np.asarray(model.psf, np.float32)
+    truth = np.full((128, 128, 3), 0.05, np.float32)
+    truth[61:68, 61:68] = 3.0
+    truth[64, 64] = 400.0
+    frame = capture(truth, psf)
+    clipped = frame >= CLIP_LEVEL
+    proposal = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
+
+    def kept_core() -> float:
+        kept, _, _ = consistency.make_consistent(frame, proposal, psf, noise=NOISE)
+        return float(kept[64, 64].mean())
+
+    assert kept_core() >= 0.8 * 400.0
+    monkeypatch.setattr(consistency, "STRONG_EVIDENCE_Z", np.inf)
+    cap = max(1.0 + consistency.SHAPE_CAP * float((proposal[..., c] - 1.0)[clipped[..., c]].mean()) for c in range(3))
+    assert kept_core() <= cap * (1.0 + 1e-5) < 0.15 * 400.0
