@@ -14,6 +14,14 @@ deterministically; with a real clock (e.g. behind HDRCAM_USB_BACKEND) scale them
 that never comes, a disconnect in the middle of a download, a response for the wrong transaction, steps that
 overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, images of whole USB packets (ZLPs),
 properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
+Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet
+per read, a header sent alone, a late response of an earlier transaction, a malformed event packet. Sony
+details libgphoto2 documents: 0x9207 +1 moves the shutter one notch shorter (libgphoto2 config.c
+_put_Sony_ShutterSpeed sends 0x01 when the target is shorter; ``reversed_shutter_steps`` flips it), 0xD215
+counts images without the 0x8000 flag while the body is still writing ("also turns to 1") and may read
+0x8000 alone either for "none" (camera_wait_for_event) or for "ready" (camera_sony_capture), 0xD213 = 3 as
+focus found (RX0), 0x9202 answers a version and u32-counted code lists (ptp_sony_get_vendorpropcodes), and
+descriptors with a second enumeration list (ptp_unpack_Sony_DPD, 2024 bodies).
 The emulator serves DNG files (format code 0xB101 like the A7's ARW).
 """
 
@@ -95,7 +103,18 @@ class Faults:
     focus_mode: int = SONY_FOCUS_MANUAL  # 0x500A: 1 MF, 2 AF-S
     exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
+    iso_multi_frame_nr: bool = False  # 0xD21E has Multi Frame Noise Reduction in its high byte
     image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only
+    reversed_shutter_steps: bool = False  # 0x9207 +1 makes the shutter longer (libgphoto2: +1 = shorter)
+    focus_found_value: int = SONY_FOCUS_FOUND  # what 0xD213 reads once focused: 2, or 3 as on the RX0
+    pending_flag_without_images: bool = False  # 0xD215 reads 0x8000 (flag, no images) once memory is empty
+    pending_flag_alone_when_ready: bool = False  # 0xD215 reads 0x8000 (no count) while an image is ready
+    secondary_enumerations: bool = False  # enumerated descriptors carry a second list (newer bodies)
+    coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
+    max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
+    split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
+    stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
+    malformed_event: bool = False  # a 4-parameter event packet at the next full press
 
 
 class _InPipe:
@@ -148,6 +167,7 @@ class EmulatedSonyA7:
         self.events: collections.deque[bytes] = collections.deque()
         self.connected = True
         self.lens_covered = False
+        self.priority_mode = 0  # 0xD25A: 0 camera, 1 application (set by the host with 0x9205)
         self._out_transfer = bytearray()
         self._awaiting_data: Container | None = None
         self._reset_state()
@@ -197,6 +217,8 @@ class EmulatedSonyA7:
     def bulk_in(self, buffer) -> int:
         self._require_connected()
         self._advance()
+        if self.faults.max_read_bytes:
+            buffer = memoryview(buffer).cast("B")[:self.faults.max_read_bytes]
         if self.halted:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         count = self.in_pipe.read_into(buffer)
@@ -263,6 +285,9 @@ class EmulatedSonyA7:
         if faults.wrong_transaction_operation == code:
             faults.wrong_transaction_operation = None
             transaction_id += 1
+        if faults.stale_response_operation == code:
+            faults.stale_response_operation = None
+            self._send(response(Response.OK, transaction_id - 1))
         if code != Operation.OPEN_SESSION and code != Operation.GET_DEVICE_INFO and not self.session_open:
             self._send(response(Response.SESSION_NOT_OPEN, transaction_id))
             return
@@ -272,9 +297,17 @@ class EmulatedSonyA7:
             return
         outcome = handler(request, payload)
         reply_payload, reply_code = outcome if isinstance(outcome, tuple) else (None, outcome)
+        answer = response(reply_code, transaction_id).pack()
         if reply_payload is not None:
-            self._send(data(code, transaction_id, reply_payload))
-        self._send(response(reply_code, transaction_id))
+            packed = data(code, transaction_id, reply_payload).pack()
+            if faults.split_header:
+                self.in_pipe.queue(packed[:12])
+                packed = packed[12:]
+            if faults.coalesce_response:
+                self.in_pipe.queue(packed + answer)
+                return
+            self.in_pipe.queue(packed)
+        self.in_pipe.queue(answer)
 
     def _send(self, container: Container) -> None:
         self.in_pipe.queue(container.pack())
@@ -304,8 +337,19 @@ class EmulatedSonyA7:
         if self.faults.empty_sdio_answers:  # a body still starting PC-remote mode answers OK with no data
             self.faults.empty_sdio_answers -= 1
             return b"", Response.OK
-        codes = [int(c) for c in (*Operation, *Event, *Property)]
-        return struct.pack(f"<H{len(codes)}H", 0xC8, *codes), Response.OK
+        # libgphoto2 ptp_sony_get_vendorpropcodes: u16 version, u32-counted u16 codes, optionally a second list
+        operations_and_events = [int(c) for c in (*Operation, *Event)]
+        properties = [int(c) for c in Property]
+        return (struct.pack(f"<HI{len(operations_and_events)}H", 0xC8, len(operations_and_events),
+                            *operations_and_events)
+                + struct.pack(f"<I{len(properties)}H", len(properties), *properties)), Response.OK
+
+    def _op_9205(self, request, payload):  # SetControlDeviceA: only the priority mode (0xD25A, INT8)
+        code = request.params[0] if request.params else 0
+        if code == Property.SONY_PRIORITY_MODE and payload is not None and len(payload) == 1:
+            self.priority_mode = struct.unpack("<b", payload)[0]
+            return Response.OK
+        return Response.DEVICE_PROP_NOT_SUPPORTED
 
     def _op_9209(self, request, payload):  # GetAllDevicePropData
         return pack_sony_properties(self._descriptors()), Response.OK
@@ -320,8 +364,8 @@ class EmulatedSonyA7:
                 return Response.PARAMETER_NOT_SUPPORTED
             self._step_count += 1
             notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
-            if code == Property.SONY_SHUTTER_SPEED:
-                delta = -delta  # the A7 counts shutter notches towards longer times
+            if code == Property.SONY_SHUTTER_SPEED and self.faults.reversed_shutter_steps:
+                delta = -delta  # libgphoto2: +1 = one notch shorter (up the notch index); this body counts the other way
             self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta * notches))
             return Response.OK
         if code in self._buttons:
@@ -331,7 +375,10 @@ class EmulatedSonyA7:
             if code == Property.SONY_HALF_PRESS:
                 self._half_pressed_at = self.clock.monotonic() if state == 2 else None
             if code == Property.SONY_FULL_PRESS and state == 2 and self._buttons[code] != 2:
-                self.shots.append({"focused": self._focus_found() == SONY_FOCUS_FOUND
+                if self.faults.malformed_event:
+                    self.faults.malformed_event = False
+                    self.events.append(struct.pack("<IHHI4I", 28, 4, Event.SONY_OBJECT_ADDED, 0, 1, 2, 3, 4))
+                self.shots.append({"focused": self._focus_found() == self.faults.focus_found_value
                                    or self.faults.focus_mode == SONY_FOCUS_MANUAL,
                                    "exposure_s": self.camera.true_exposure_s()})
             if code == Property.SONY_FULL_PRESS and state == 1 and self._buttons[code] == 2:
@@ -407,23 +454,33 @@ class EmulatedSonyA7:
         faults = self.faults
         if faults.focus_mode == SONY_FOCUS_MANUAL or self._half_pressed_at is None or faults.never_focus:
             return 1
-        return SONY_FOCUS_FOUND if self.clock.monotonic() >= self._half_pressed_at + self.latencies.focus_s else 1
+        focused = self.clock.monotonic() >= self._half_pressed_at + self.latencies.focus_s
+        return faults.focus_found_value if focused else 1
 
     def _descriptors(self) -> list[PropertyDescriptor]:
         self._advance()
         settings = self.camera.settings()
         faults = self.faults
-        pending = SONY_PENDING_IMAGE_FLAG | 1 if self._image is not None and self._image_due_s is None else 0
+        waiting = (self._image is not None) + len(self._queued_images)
+        if self._image is not None and self._image_due_s is None:
+            pending = SONY_PENDING_IMAGE_FLAG | (0 if faults.pending_flag_alone_when_ready else waiting)
+        elif waiting:
+            pending = waiting  # still being written: the count without the flag (libgphoto2: "also turns to 1")
+        else:
+            pending = SONY_PENDING_IMAGE_FLAG if faults.pending_flag_without_images and self.downloads else 0
         shutter = self.camera.notch.ptp_value
         iso = ISO_AUTO if faults.iso_auto else int(settings.iso)
+        if faults.iso_multi_frame_nr:
+            iso |= 1 << 24
+        secondary = (*ISO_VALUES, ISO_AUTO) if faults.secondary_enumerations else None
         descriptors = [
             PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
             PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
-                               (*ISO_VALUES, ISO_AUTO)),
+                               (*ISO_VALUES, ISO_AUTO), secondary),
             PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100)),
             PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),
             PropertyDescriptor(Property.FOCUS_MODE, DataType.UINT16, 1, 1, 2, faults.focus_mode, FORM_ENUMERATION,
-                               (1, 2, 0x8004, 0x8005)),
+                               (1, 2, 0x8004, 0x8005), (1, 2, 0x8004, 0x8005) if faults.secondary_enumerations else None),
             PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, faults.exposure_mode),
             PropertyDescriptor(Property.DRIVE_MODE, DataType.UINT16, 1, 1, 1, 1),
             PropertyDescriptor(Property.SONY_FOCUS_FOUND, DataType.UINT8, 0, 1, 1, self._focus_found()),

@@ -4,13 +4,22 @@ Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo 
 the SDIO handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every
 property descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
 stepped one notch at a time with 0x9207; each step is polled through 0x9209 until the value lands, and an
-overshoot is stepped back. An empty 0x9202 answer is asked again (libgphoto2 does; the body is still
-starting its PC-remote mode). The handshake refuses, before any shot, a body not on M (0x500E), recording
+overshoot is stepped back. An empty 0x9202 answer is asked again (Sony's PTP documentation says to retry;
+the body is still starting its PC-remote mode); if it stays empty the handshake goes on with the version
+unknown, as libgphoto2's ptp_sony_get_vendorpropcodes does ("No special operations sent?") - a body not in
+PC-remote mode fails at 0x9209 anyway. The handshake refuses, before any shot, a body not on M (0x500E), recording
 JPEG only (0x5004 without its RAW bit) or on Bulb, and records focus mode, drive mode and firmware.
 
+After the handshake the priority mode (0xD25A) is set to "application" with 0x9205, as libgphoto2 does;
+a body that does not know it answers with an error, which is logged and ignored.
+
 Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image
-still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (never in MF), with a
-timeout; full press, release both; then wait until 0xD215 >= 0x8000 says the image is ready - events
+still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2
+accepts for the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the image is ready -
+libgphoto2 reads it two ways: its capture path (camera_sony_capture) takes >= 0x8000 as ready, its event loop
+(camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e. 0x8000 alone as none. So an image is
+ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not already read 0x8000 before the release; a count
+without the flag (the body still writing: "also turns to 1") never is - events
 (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
 camera answer GetObjectInfo with InvalidObjectHandle, and premature access can crash the firmware. Then
 GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the
@@ -31,12 +40,14 @@ import usb.core
 
 from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, nearest_iso, nearest_shutter, shutter_from_ptp
-from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
-                                      SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
-                                      SONY_PROTOCOL_MODE_2, SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG,
-                                      SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, Operation, Property)
+from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M,
+                                      SONY_FOCUS_FOUND_VALUES, SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT,
+                                      SONY_ISO_NR_SHIFT, SONY_PENDING_IMAGE_FLAG,
+                                      SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2, SONY_RAW_FORMAT,
+                                      SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID,
+                                      Operation, Property, Response)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
-from hdrcam.capture.ptp.session import Clock, PtpSession
+from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.raw import read_raw
@@ -50,8 +61,11 @@ SDIO_INFO_ATTEMPTS = 10  # an empty 0x9202 answer is asked again this many times
 SDIO_RETRY_S = 0.2
 OBJECTS_PER_SHOT = 3  # RAW + JPEG gives two
 STALE_EVENTS_MAX = 64  # events drained at the start of a shot, at most
+DRAIN_MAX_OBJECTS = 32  # images left in memory fetched and dropped before a shot, at most
 USB_BACKEND_VARIABLE = "HDRCAM_USB_BACKEND"
 _PRESS, _RELEASE = 2, 1
+_MFNR_MESSAGE = ("ISO is set with Multi Frame Noise Reduction (the body merges several exposures): choose a plain "
+                 "ISO value in the camera's menu")
 
 
 def usb_backend_from_environment():
@@ -172,8 +186,18 @@ class SonyA7Camera:
         session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
         self.protocol_version = self._sdio_protocol_version()
         session.transact(Operation.SONY_SDIO_CONNECT, 3, 0, 0)
+        self._set_priority_to_application()
         self.refresh()
         self._check_ready_for_raw_brackets()
+
+    def _set_priority_to_application(self) -> None:
+        """0x9205 on 0xD25A = 1 (INT8): the PC, not the body's dials, has priority (libgphoto2 does this after
+        0x9201(3) and ignores a refusal; so does this)."""
+        try:
+            self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_A, Property.SONY_PRIORITY_MODE,
+                                  data_out=struct.pack("<b", SONY_PRIORITY_APPLICATION))
+        except ResponseError as error:
+            self.session.log.append(f"priority mode not set to application ({error}); continuing")
 
     def _sdio_protocol_version(self) -> int:
         """0x9202's protocol version, asking again while the answer is empty."""
@@ -183,8 +207,9 @@ class SonyA7Camera:
                 return struct.unpack_from("<H", answer)[0]
             self.session.log.append(f"GetSDIOGetExtDeviceInfo answered empty; asked again ({attempt + 1})")
             self.clock.sleep(SDIO_RETRY_S)
-        raise CameraError(f"the camera's SDIO extension info stayed empty after {SDIO_INFO_ATTEMPTS} requests; is "
-                          "USB Connection set to PC Remote?")
+        self.session.log.append(f"GetSDIOGetExtDeviceInfo stayed empty after {SDIO_INFO_ATTEMPTS} requests; going on "
+                                "with the protocol version unknown (as libgphoto2 does)")
+        return 0
 
     def _check_ready_for_raw_brackets(self) -> None:
         """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only."""
@@ -195,6 +220,9 @@ class SonyA7Camera:
         if self._current(Property.SONY_SHUTTER_SPEED) == 0:
             raise CameraError("the shutter is on Bulb: set the mode dial to M and a shutter time "
                               "(Bulb's hot-pixel filter flattens a PSF core)")
+        iso = self.properties.get(Property.SONY_ISO)
+        if iso is not None and iso.current >> SONY_ISO_NR_SHIFT:
+            raise CameraError(_MFNR_MESSAGE)
         quality = self.properties.get(Property.IMAGE_QUALITY)
         if quality is not None and not quality.current & SONY_RAW_QUALITY_FLAG:
             raise CameraError(f"the camera records JPEG only (quality 0x{quality.current:02X}): set File Format to "
@@ -243,6 +271,8 @@ class SonyA7Camera:
 
     @staticmethod
     def _iso_index(value: int) -> int:
+        if value >> SONY_ISO_NR_SHIFT:
+            raise CameraError(_MFNR_MESSAGE)
         value &= 0xFFFFFF
         if value not in ISO_VALUES:
             raise CameraError("ISO is on Auto or an extended value: set a fixed ISO between 100 and 25600")
@@ -279,7 +309,7 @@ class SonyA7Camera:
         self.cover_lens(dark)
         settings = self.settings()
         self._drain_stale_events()
-        self._drain_pending_image()
+        before_release = self._drain_pending_image()
         self._press(Property.SONY_HALF_PRESS, _PRESS)
         if not self.focus_is_manual:
             self._wait_for_focus()
@@ -287,7 +317,8 @@ class SonyA7Camera:
         self._press(Property.SONY_FULL_PRESS, _RELEASE)
         self._press(Property.SONY_HALF_PRESS, _RELEASE)
         timestamp = dt.datetime.now().replace(microsecond=0)
-        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s)
+        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s,
+                             flag_alone_is_ready=before_release != SONY_PENDING_IMAGE_FLAG)
         info, content = self._download_raw(CAPTURE_TIMEOUT_S)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
@@ -304,7 +335,7 @@ class SonyA7Camera:
             if info.object_format == SONY_RAW_FORMAT:
                 return info, content
             self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
-            self._wait_for_image(timeout_s)
+            self._wait_for_image(timeout_s, flag_alone_is_ready=True)
         raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
 
     def _press(self, button: int, state: int) -> None:
@@ -313,7 +344,7 @@ class SonyA7Camera:
     def _wait_for_focus(self) -> None:
         """Poll FocusFound until it turns 2; CameraError after FOCUS_TIMEOUT_S (the half press is released)."""
         deadline = self.clock.monotonic() + FOCUS_TIMEOUT_S
-        while self._current_after_refresh(Property.SONY_FOCUS_FOUND) != SONY_FOCUS_FOUND:
+        while self._current_after_refresh(Property.SONY_FOCUS_FOUND) not in SONY_FOCUS_FOUND_VALUES:
             if self.clock.monotonic() > deadline:
                 self._press(Property.SONY_HALF_PRESS, _RELEASE)
                 raise CameraError(f"the camera found no focus within {FOCUS_TIMEOUT_S:g} s of the half press: focus "
@@ -326,10 +357,11 @@ class SonyA7Camera:
             raise CameraError(f"the camera does not report property 0x{code:04X}")
         return descriptor.current
 
-    def _wait_for_image(self, timeout_s: float) -> None:
-        """Until 0xD215 says an image is ready; events only shorten the wait between polls."""
+    def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> None:
+        """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
+        events only shorten the wait between polls."""
         deadline = self.clock.monotonic() + timeout_s
-        while not self._image_pending():
+        while not _image_ready(self._pending_images(), flag_alone_is_ready):
             if self.clock.monotonic() > deadline:
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter release")
             if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
@@ -342,11 +374,30 @@ class SonyA7Camera:
             if self.session.transport.read_event(1) is None:
                 return
 
-    def _image_pending(self) -> bool:
-        return self.refresh()[Property.SONY_PENDING_IMAGES].current >= SONY_PENDING_IMAGE_FLAG
+    def _pending_images(self) -> int:
+        return self.refresh()[Property.SONY_PENDING_IMAGES].current
 
-    def _drain_pending_image(self) -> None:
-        """An image left in the camera's memory would be returned instead of the next one: fetch and drop it."""
-        while self._image_pending():
-            self.session.object_info(SONY_IN_MEMORY_OBJECT)
+    def _drain_pending_image(self) -> int:
+        """An image left in the camera's memory would be returned instead of the next one: fetch and drop it
+        while 0xD215 is above 0x8000 (both of libgphoto2's readings agree there). A body whose 0xD215 lags
+        behind answers InvalidObjectHandle: that ends the drain, it is not an error. Returns 0xD215 after it."""
+        for _ in range(DRAIN_MAX_OBJECTS):
+            pending = self._pending_images()
+            if pending <= SONY_PENDING_IMAGE_FLAG:
+                return pending
+            try:
+                self.session.object_info(SONY_IN_MEMORY_OBJECT)
+            except ResponseError as error:
+                if error.response_code != Response.INVALID_OBJECT_HANDLE:
+                    raise
+                self.session.log.append("0xD215 said an image waits but there was none; nothing to drain")
+                return pending
             self.session.get_object(SONY_IN_MEMORY_OBJECT)
+        raise CameraError("the camera keeps reporting images in memory after draining them; switch it off and on")
+
+
+def _image_ready(pending_images: int, flag_alone_is_ready: bool) -> bool:
+    """0xD215's value says an image waits as 0xFFFFC001: 0x8000 | count above 0x8000; 0x8000 exactly when
+    ``flag_alone_is_ready``; a count without the flag (the body still writing) never."""
+    return pending_images > SONY_PENDING_IMAGE_FLAG or (pending_images == SONY_PENDING_IMAGE_FLAG
+                                                        and flag_alone_is_ready)

@@ -28,9 +28,10 @@ def test_handshake_reads_model_protocol_and_properties():
         assert camera.settings().exposure_label == "1/60"
 
 
-@pytest.mark.parametrize("overshoot_every", [0, 2])
-def test_notch_stepping_lands_on_the_target_despite_reversed_direction_and_overshoot(overshoot_every):
-    with emulated(overshoot_every=overshoot_every) as camera:
+@pytest.mark.parametrize("overshoot_every, reversed_shutter_steps", [(0, False), (2, False), (0, True), (2, True)])
+def test_notch_stepping_lands_on_the_target_despite_reversed_direction_and_overshoot(overshoot_every,
+                                                                                      reversed_shutter_steps):
+    with emulated(overshoot_every=overshoot_every, reversed_shutter_steps=reversed_shutter_steps) as camera:
         assert camera.set_exposure(exposure_s=1 / 4000).exposure_label == "1/4000"
         assert camera.set_exposure(exposure_s=2.0).exposure_label == '2"'
         assert camera.set_exposure(iso=400).iso == 400

@@ -62,8 +62,9 @@ class Property(IntEnum):
     EXPOSURE_COMPENSATION = 0x5010  # i16, EV x 1000
     SONY_SHUTTER_SPEED = 0xD20D  # u32 (numerator << 16) | denominator; 0 = bulb
     SONY_FOCUS_FOUND = 0xD213  # 1 = searching / not focused, 2 = focus found (after a half press)
-    SONY_PENDING_IMAGES = 0xD215  # >= 0x8000: an image waits in memory as 0xFFFFC001
-    SONY_ISO = 0xD21E  # low 24 bits; 0xFFFFFF = auto
+    SONY_PENDING_IMAGES = 0xD215  # 0x8000 | count: images wait in memory as 0xFFFFC001
+    SONY_ISO = 0xD21E  # low 24 bits; 0xFFFFFF = auto; high byte: 1/2 = Multi Frame Noise Reduction (std/high)
+    SONY_PRIORITY_MODE = 0xD25A  # INT8 0 = camera, 1 = application (PC); libgphoto2 sets 1 after the handshake
     SONY_HALF_PRESS = 0xD2C1  # 2 = press, 1 = release (autofocus button)
     SONY_FULL_PRESS = 0xD2C2  # 2 = press, 1 = release (shutter button)
 
@@ -97,10 +98,13 @@ SONY_USB_VENDOR_ID = 0x054C
 SONY_A7_PC_REMOTE_PRODUCT_ID = 0x094C
 SONY_IN_MEMORY_OBJECT = 0xFFFFC001
 SONY_RAW_FORMAT = 0xB101
-SONY_PENDING_IMAGE_FLAG = 0x8000
+SONY_PENDING_IMAGE_FLAG = 0x8000  # 0xD215 = 0x8000 | images waiting (0x8000 alone: see hdrcam.capture.sony)
+SONY_ISO_NR_SHIFT = 24  # 0xD21E >> 24: 0 off, 1 Multi Frame Noise Reduction, 2 MFNR high (libgphoto2 config.c)
+SONY_PRIORITY_APPLICATION = 1
 SONY_RAW_QUALITY_FLAG = 0x10  # in 0x5004: RAW is recorded
 SONY_FOCUS_MANUAL = 1
 SONY_FOCUS_FOUND = 2
+SONY_FOCUS_FOUND_VALUES = (2, 3)  # libgphoto2 camera_sony_capture: "0xd213 = 2 or 3 (for rx0)"
 SONY_EXPOSURE_MODE_M = 1
 SONY_PROTOCOL_MODE_2 = 0xC8  # the A7's "old" SDIO protocol: notch stepping only
 CANCEL_EVENT_CODE = 0x4001  # the event code carried by a cancel request

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import struct
 
+from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp.codes import ContainerType
 
 HEADER = struct.Struct("<IHHI")
@@ -16,8 +17,8 @@ HEADER_SIZE = HEADER.size  # 12 bytes
 _MAX_PARAMETERS = {ContainerType.COMMAND: 5, ContainerType.RESPONSE: 5, ContainerType.EVENT: 3}
 
 
-class ContainerError(ValueError):
-    """Bytes that are not a valid PTP container."""
+class ContainerError(CameraError, ValueError):
+    """Bytes that are not a valid PTP container (a CameraError: the user sees one line and exit status 1)."""
 
 
 @dataclasses.dataclass(frozen=True)

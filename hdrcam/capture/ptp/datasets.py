@@ -6,7 +6,10 @@ A PTP string is a u8 count of UTF-16LE code units including the terminating NUL 
 string), then the code units. An array is a u32 count and its elements. Sony's 0x9209 answer is a u64
 count of descriptors, then per descriptor: u16 code, u16 data type, u8 get/set, u8 enabled, the factory
 default and current values, a u8 form flag and the form (range: min, max, step; enumeration: u16 count and
-values) - libgphoto2's ptp_unpack_Sony_DPD.
+values; newer bodies follow an enumeration with a second u16-counted list) - libgphoto2's
+ptp_unpack_Sony_DPD, which also reads descriptors until the data ends rather than trusting the count.
+ObjectInfo's trailing strings may be left out (libgphoto2's ptp_unpack_OI reads them only while data remains).
+Damaged datasets raise DatasetError, a CameraError (one line for the user, exit status 1).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import struct
 
+from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp.codes import DataType
 
 _FORMATS = {DataType.INT8: "b", DataType.UINT8: "B", DataType.INT16: "h", DataType.UINT16: "H",
@@ -21,7 +25,7 @@ _FORMATS = {DataType.INT8: "b", DataType.UINT8: "B", DataType.INT16: "h", DataTy
 FORM_NONE, FORM_RANGE, FORM_ENUMERATION = 0, 1, 2
 
 
-class DatasetError(ValueError):
+class DatasetError(CameraError, ValueError):
     """A dataset that ends early or holds an impossible value."""
 
 
@@ -81,6 +85,16 @@ class Reader:
 
     def u16_array(self) -> tuple[int, ...]:
         return tuple(self.u16() for _ in range(self.u32()))
+
+    @property
+    def remaining(self) -> int:
+        return len(self.payload) - self.offset
+
+    def peek_u16(self) -> int | None:
+        """The next u16 without consuming it; None at the end of the data."""
+        if self.remaining < 2:
+            return None
+        return struct.unpack_from("<H", self.payload, self.offset)[0]
 
 
 class Writer:
@@ -205,7 +219,8 @@ class ObjectInfo:
     def unpack(cls, payload: bytes) -> "ObjectInfo":
         reader = Reader(payload)
         numbers = [getattr(reader, kind)() for kind in cls._LAYOUT]
-        return cls(*numbers, *(reader.string() for _ in range(4)))
+        texts = [reader.string() if reader.remaining else "" for _ in range(4)]  # trailing strings are optional
+        return cls(*numbers, *texts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -220,6 +235,7 @@ class PropertyDescriptor:
     current: object
     form_flag: int = FORM_NONE
     form: tuple = ()  # range: (min, max, step); enumeration: the allowed values
+    secondary_form: tuple | None = None  # newer bodies: a second enumeration list after the first
 
     def pack(self) -> bytes:
         writer = Writer().u16(self.code).u16(self.data_type).u8(self.get_set).u8(self.enabled)
@@ -228,9 +244,10 @@ class PropertyDescriptor:
             for value in self.form:
                 writer.value(self.data_type, value)
         elif self.form_flag == FORM_ENUMERATION:
-            writer.u16(len(self.form))
-            for value in self.form:
-                writer.value(self.data_type, value)
+            for values in (self.form,) if self.secondary_form is None else (self.form, self.secondary_form):
+                writer.u16(len(values))
+                for value in values:
+                    writer.value(self.data_type, value)
         return writer.bytes()
 
     @classmethod
@@ -246,7 +263,13 @@ class PropertyDescriptor:
             form = ()
         else:
             raise DatasetError(f"property 0x{code:04X} has unknown form flag {form_flag}")
-        return cls(code, data_type, get_set, enabled, default, current, form_flag, form)
+        secondary = None
+        following = reader.peek_u16()
+        # libgphoto2: a u16 below 0x200 where the next property code (0x5xxx, 0xDxxx) would be is the count of
+        # a second enumeration list (newer Sony bodies)
+        if form_flag == FORM_ENUMERATION and following is not None and following < 0x200:
+            secondary = tuple(reader.value(data_type) for _ in range(reader.u16()))
+        return cls(code, data_type, get_set, enabled, default, current, form_flag, form, secondary)
 
 
 def pack_sony_properties(descriptors) -> bytes:
@@ -255,8 +278,21 @@ def pack_sony_properties(descriptors) -> bytes:
 
 
 def unpack_sony_properties(payload: bytes) -> dict[int, PropertyDescriptor]:
-    """Property code -> descriptor from a 0x9209 payload."""
+    """Property code -> descriptor from a 0x9209 payload.
+
+    As libgphoto2's ptp_sony_getalldevicepropdesc: the 8-byte count is skipped and descriptors are read
+    until the data ends; a descriptor that cannot be read ends the list (the ones before it are kept) unless
+    none could be read at all."""
     reader = Reader(payload)
     count = reader.u64()
-    descriptors = [PropertyDescriptor.read(reader) for _ in range(count)]
+    descriptors = []
+    while reader.remaining:
+        try:
+            descriptors.append(PropertyDescriptor.read(reader))
+        except DatasetError:
+            if not descriptors:
+                raise
+            break
+    if count and not descriptors:
+        raise DatasetError(f"the property list announces {count} descriptors but holds none")
     return {descriptor.code: descriptor for descriptor in descriptors}

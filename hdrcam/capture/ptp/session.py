@@ -1,7 +1,9 @@
 """PTP sessions and transactions: command, optional data phase (either direction), response.
 
-OpenSession goes out with transaction id 0; later transactions count up from 1. A response that is not
-for the transaction in flight is a protocol error. DeviceBusy is retried with back-off. A timeout cancels
+OpenSession goes out with transaction id 0; later transactions count up from 1. A container for an earlier
+transaction (a late answer to one that timed out and was cancelled) is dropped and the next one read, as
+libgphoto2's ptp_transaction_new does ("suspecting old reply"); one for any other transaction is a protocol
+error. DeviceBusy is retried with back-off. A timeout cancels
 the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) has its
 halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
 ``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
@@ -22,6 +24,7 @@ READ_ONLY_OPERATIONS = {Operation.GET_DEVICE_INFO, Operation.GET_OBJECT_INFO, Op
                         Operation.GET_DEVICE_PROP_DESC, Operation.GET_DEVICE_PROP_VALUE,
                         Operation.SONY_GET_ALL_DEVICE_PROP_DATA, Operation.SONY_GET_SDIO_EXT_DEVICE_INFO}
 TRANSIENT_RETRIES = 2  # timeouts and stalls, per transaction
+STALE_CONTAINERS_MAX = 8  # late containers of earlier transactions dropped while waiting for this one's
 STATUS_WAIT_S = 5.0  # for the device to report OK after a cancel or a cleared stall
 
 
@@ -35,6 +38,11 @@ class ResponseError(CameraError):
 
 class ProtocolError(CameraError):
     """The camera sent something PTP does not allow at this point."""
+
+
+def _is_earlier(reply_id: int, current_id: int) -> bool:
+    """True when ``reply_id`` precedes ``current_id`` in the (wrapping, 32-bit) transaction sequence."""
+    return 0 < (current_id - reply_id) % (1 << 32) < (1 << 31)
 
 
 class Clock:
@@ -91,16 +99,31 @@ class PtpSession:
         if data_out is not None:
             self.transport.send(data(operation, transaction_id, data_out), timeout_ms)
         payload = b""
-        reply = self.transport.receive(timeout_ms)
+        reply = self._receive(operation, transaction_id, timeout_ms)
         if reply.kind == ContainerType.DATA:
             self._check_matches(reply, operation, transaction_id)
             payload = reply.payload
-            reply = self.transport.receive(timeout_ms)
+            reply = self._receive(operation, transaction_id, timeout_ms)
         if reply.kind != ContainerType.RESPONSE:
             raise ProtocolError(f"expected a response to {codes.name(operation)}, got a {reply.kind.name.lower()} "
                                 "container")
         self._check_matches(reply, operation, transaction_id)
         return reply, payload
+
+    def _receive(self, operation: int, transaction_id: int, timeout_ms: int) -> Container:
+        """The next container for this transaction, dropping late ones of earlier transactions (and events
+        sent on the bulk pipe), a bounded number of times."""
+        for _ in range(STALE_CONTAINERS_MAX):
+            reply = self.transport.receive(timeout_ms)
+            stale = _is_earlier(reply.transaction_id, transaction_id) or (  # OpenSession: a previous session's
+                operation == Operation.OPEN_SESSION and reply.transaction_id != transaction_id)
+            if reply.kind == ContainerType.EVENT or stale:
+                self.log.append(f"{codes.name(operation)}: dropped a late {reply.kind.name.lower()} container "
+                                f"({codes.name(reply.code)}, transaction {reply.transaction_id})")
+                continue
+            return reply
+        raise ProtocolError(f"the camera sent {STALE_CONTAINERS_MAX} containers of other transactions while "
+                            f"{codes.name(operation)} (transaction {transaction_id}) was in flight")
 
     def _take_transaction_id(self, operation: int) -> int:
         if operation == Operation.OPEN_SESSION:

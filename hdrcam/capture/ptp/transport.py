@@ -1,8 +1,12 @@
 """PTP over USB bulk pipes (PIMA 15740 USB still-image class), on pyusb.
 
 A transaction's phases are containers on the bulk pipes; a transfer whose length is an exact multiple of
-the endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Events arrive on
-the interrupt pipe. Class requests on the control pipe cancel a transaction, reset the device and read
+the endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Reading follows
+libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet's worth, the rest of a
+container is read until its length field is satisfied however short each read is, bytes read past its end
+(a device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
+zero-length read (a ZLP left over) is skipped. Events arrive on the interrupt pipe; they are hints only, so a
+packet that is not a valid event container is dropped, never raised. Class requests on the control pipe cancel a transaction, reset the device and read
 its status. USB failures become ``TransportTimeout``, ``Stalled`` (EPIPE) or ``Disconnected``.
 """
 
@@ -16,9 +20,11 @@ import usb.util
 
 from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp.codes import CANCEL_EVENT_CODE, PTP_INTERFACE, ClassRequest
-from hdrcam.capture.ptp.container import HEADER_SIZE, Container, parse_header
+from hdrcam.capture.ptp.container import HEADER_SIZE, Container, ContainerError, parse_header
 
 READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
+FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
+EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 
@@ -67,6 +73,7 @@ class UsbTransport:
         self.interrupt_in = endpoint(usb.util.ENDPOINT_IN, usb.util.ENDPOINT_TYPE_INTR)
         if self.bulk_in is None or self.bulk_out is None:
             raise CameraError("the PTP interface lacks its bulk endpoints")
+        self._pending = b""  # bytes read past the end of the last container, the start of the next one
 
     def _detach_kernel_driver(self) -> None:
         try:
@@ -92,49 +99,58 @@ class UsbTransport:
                 self.bulk_out.write(b"", timeout_ms)
 
     def receive(self, timeout_ms: int) -> Container:
-        """Read one container (data or response).
+        """Read one container (data or response), as libgphoto2's ptp_usb_getdata does.
 
-        A read ends at a short packet or when its buffer is full; a ZLP ending a transfer of whole packets
-        is consumed by the read it terminates, so it is read separately only when the last read filled
-        its buffer exactly.
+        The first read asks for one packet's worth (at least 512 bytes); the rest is read in whole packets
+        until the container's length is reached, however few bytes each read returns (one packet per read,
+        a 12-byte header sent alone). Bytes past the container's end are kept as the start of the next one;
+        zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped.
         """
-        packet_size = self.bulk_in.wMaxPacketSize
+        packet_size = self.bulk_in.wMaxPacketSize or 512
+        first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
+        buffer, self._pending = bytearray(self._pending), b""
         with _usb_errors("waiting for the camera", timeout_ms):
-            chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
-            while not chunk:  # a stray ZLP left from an earlier transfer
-                chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
-            length = parse_header(chunk)[0]
-            buffer = bytearray(chunk)
-            while len(buffer) < length and len(chunk) == READ_CHUNK_BYTES:
-                chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
-                buffer += chunk
-            if len(buffer) == length and length % packet_size == 0 and len(chunk) == READ_CHUNK_BYTES:
-                self._read_zlp(timeout_ms)
-        if len(buffer) != length:
-            raise CameraError(f"the camera sent {len(buffer)} bytes of a {length}-byte container")
+            while len(buffer) < HEADER_SIZE:
+                buffer += self._read(first_read, timeout_ms)
+            length = parse_header(buffer)[0]
+            while len(buffer) < length:
+                remaining = length - len(buffer)
+                buffer += self._read(min(READ_CHUNK_BYTES, -(-remaining // packet_size) * packet_size), timeout_ms)
+        if len(buffer) > length:
+            self._pending = bytes(buffer[length:])
+            del buffer[length:]
         return Container.unpack(bytes(buffer))
 
-    def _read_zlp(self, timeout_ms: int) -> None:
-        if len(self.bulk_in.read(self.bulk_in.wMaxPacketSize, timeout_ms)) != 0:
-            raise CameraError("expected a zero-length packet after a transfer of whole packets")
+    def _read(self, size: int, timeout_ms: int) -> bytes:
+        """One bulk-in read of at most ``size`` bytes that returns data; zero-length reads are skipped."""
+        for _ in range(EMPTY_READS_MAX):
+            chunk = bytes(self.bulk_in.read(size, timeout_ms))
+            if chunk:
+                return chunk
+        raise CameraError(f"the camera sent {EMPTY_READS_MAX} zero-length packets in a row instead of a container")
 
     # -- interrupt ---------------------------------------------------------------------------------------------
     def read_event(self, timeout_ms: int) -> Container | None:
-        """One event container, or None if none arrives within the timeout."""
+        """One event container, or None if none arrives within the timeout or the packet is not a valid event
+        (events only wake waits up; libgphoto2's ptp_usb_event reads at most 24 bytes and never fails a
+        capture on a bad one)."""
         if self.interrupt_in is None:
             return None
         try:
             packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
-        except usb.core.USBTimeoutError:
-            return None
         except usb.core.USBError as error:
-            raise _translate(error, "reading events") from None
-        if len(packet) < HEADER_SIZE:
+            translated = _translate(error, "reading events", timeout_ms)
+            if isinstance(translated, TransportTimeout):
+                return None
+            raise translated from None
+        try:
+            return Container.unpack(packet[:parse_header(packet)[0]])
+        except ContainerError:
             return None
-        return Container.unpack(packet[:parse_header(packet)[0]])
 
     # -- control (class requests) ---------------------------------------------------------------------------
     def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
+        self._pending = b""  # whatever was read ahead belongs to the cancelled transaction
         with _usb_errors("cancelling", timeout_ms):
             self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.CANCEL, 0, self.interface_number,
                                       struct.pack("<HI", CANCEL_EVENT_CODE, transaction_id), timeout_ms)
@@ -154,6 +170,7 @@ class UsbTransport:
         return struct.unpack_from("<HH", reply)[1]
 
     def clear_halts(self) -> None:
+        self._pending = b""
         for endpoint in (self.bulk_in, self.bulk_out):
             try:
                 self.device.clear_halt(endpoint)
@@ -178,7 +195,8 @@ class _usb_errors:
 
 def _translate(error: usb.core.USBError, action: str, timeout_ms: int | None = None) -> CameraError:
     if isinstance(error, usb.core.USBTimeoutError) or error.errno == errno.ETIMEDOUT:
-        return TransportTimeout(f"the camera did not answer within {timeout_ms / 1000:g} s while {action}")
+        within = f" within {timeout_ms / 1000:g} s" if timeout_ms is not None else ""
+        return TransportTimeout(f"the camera did not answer{within} while {action}")
     if error.errno == errno.EPIPE:
         return Stalled(f"the camera stalled a pipe while {action}")
     if error.errno in (errno.ENODEV, errno.EIO, errno.ENOENT) or "No such device" in str(error):
