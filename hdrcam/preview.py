@@ -35,10 +35,25 @@ def side_by_side(images: list[np.ndarray], height_px: int = 512, gap_px: int = 8
 
 STRIP_ROWS = 256  # previews are computed a strip of rows at a time: memory stays small at 24 MP
 REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
+SRGB_TABLE_CELLS = 2 ** 16  # display values [0, 1] are sRGB-encoded by looking up which of this many equal cells
+# they fall in (a power of two, so scaling by it is exact; at most 2 ** 16, so a cell index fits uint16)
+
+
+def _srgb_code_table(cells: int) -> np.ndarray:
+    """uint8 sRGB code of the centre of each of ``cells`` equal cells of display values [0, 1] (float64 curve)."""
+    centre = (np.arange(cells) + 0.5) / cells
+    encoded = np.where(centre <= 0.0031308, 12.92 * centre, 1.055 * centre ** (1 / 2.4) - 0.055)
+    return np.round(encoded * 255).astype(np.uint8)
+
+
+SRGB_CODES = _srgb_code_table(SRGB_TABLE_CELLS)
 
 
 def _finite_rgb(strip: np.ndarray) -> np.ndarray:
-    return np.nan_to_num(np.clip(np.asarray(strip, np.float32), 0.0, None), posinf=0.0)
+    """float32 copy with NaN, +-inf and negative values set to 0."""
+    rgb = np.fmax(np.asarray(strip, np.float32), 0.0)  # fmax takes 0 over NaN
+    rgb[rgb == np.inf] = 0.0
+    return rgb
 
 
 def log_average_luminance(hdr_rgb: np.ndarray) -> float:
@@ -67,7 +82,10 @@ def reduced_for_preview(hdr_rgb: np.ndarray, max_side_px: int) -> np.ndarray:
 def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | None = None) -> np.ndarray:
     """Linear H x W x 3 HDR -> uint8 sRGB preview: global Reinhard on luminance (log-average to ``key``).
 
-    ``log_average`` fixes the exposure (e.g. that of a reference image, so several images compare fairly)."""
+    ``log_average`` fixes the exposure (e.g. that of a reference image, so several images compare fairly).
+    The sRGB encoding is a look-up: each display value (linear, clipped to [0, 1]) gets the code of the centre of
+    its cell among SRGB_TABLE_CELLS equal cells (SRGB_CODES), one code off the exact curve at most, and only
+    within half a cell (1 / 131072) of a boundary between two codes."""
     log_average = log_average_luminance(hdr_rgb) if log_average is None else log_average
     preview = np.empty(hdr_rgb.shape[:2] + (3,), np.uint8)
 
@@ -75,10 +93,9 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
         rgb = _finite_rgb(hdr_rgb[rows])
         luminance = rgb @ REC709_LUMINANCE
         scaled = luminance * np.float32(key / log_average)
-        display = rgb * (scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12))[..., None]
-        encoded = np.where(display <= 0.0031308, 12.92 * display,
-                           1.055 * np.power(np.clip(display, 0.0031308, None), 1 / 2.4) - 0.055)
-        preview[rows] = np.round(np.clip(encoded, 0, 1) * 255).astype(np.uint8)
+        display_gain = scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12)  # display value per linear unit
+        cell = np.minimum(rgb * (display_gain * np.float32(SRGB_TABLE_CELLS))[..., None], SRGB_TABLE_CELLS - 1)
+        preview[rows] = SRGB_CODES.take(cell.astype(np.uint16))  # the cell index: display value x cells, truncated
 
     with ThreadPoolExecutor(worker_threads()) as pool:
         list(pool.map(map_strip, strips(hdr_rgb.shape[0], STRIP_ROWS)))
