@@ -17,21 +17,21 @@ from tests.test_highlight_evidence_tool import _psf  # noqa: E402
 
 
 def _far_ring_psf() -> np.ndarray:
-    """(3, 17, 17): 0.9 at the centre, 0.1 spread over the square ring 8 px out - beyond the judge's local bound
-    from every pixel of a 4 px lamp (so only its exact, cluster-wide bound applies; a ring 4-6 px out is the
-    known failure in tests/recon/test_do_no_harm.py)."""
-    psf = np.zeros((3, 17, 17), np.float32)
-    ring = np.zeros((17, 17), bool)
-    ring[0, :] = ring[16, :] = ring[:, 0] = ring[:, 16] = True
+    """(3, 25, 25): 0.9 at the centre, 0.1 spread over the square ring 12 px out - beyond the judge's local bound
+    (LOCAL_BOUND_PX) from every pixel of a 4 px lamp (so only its exact, cluster-wide bound applies; a ring partly
+    within reach is the known failure in tests/recon/test_do_no_harm.py)."""
+    psf = np.zeros((3, 25, 25), np.float32)
+    ring = np.zeros((25, 25), bool)
+    ring[0, :] = ring[24, :] = ring[:, 0] = ring[:, 24] = True
     psf[:, ring] = 0.1 / ring.sum()
-    psf[:, 8, 8] = 0.9
+    psf[:, 12, 12] = 0.9
     return psf
 
 
 def test_on_a_lamp_whose_streaks_are_seen_the_judge_keeps_a_dim_proposal_and_lowers_a_bright_one():
     truth = np.full((96, 96, 3), 0.2, np.float32)
     truth[46:50, 46:50] = 40.0  # a lamp far above white on a flat, dim background
-    psf = _far_ring_psf()  # a tenth of the light 8 px out: unclipped ring pixels record it
+    psf = _far_ring_psf()  # a tenth of the light 12 px out: unclipped ring pixels record it
     frame = np.clip(convolve(truth, psf), 0.0, 1.0)
     total, (dim, exact, bright) = kept_shares(frame, truth, psf, NoiseModel(), [0.25, 1.0, 4.0])
     assert total > 0

@@ -13,11 +13,13 @@ only take that excess down, never up, so the result is never brighter than the p
   and read noise (relative units, 1 = full well). Applied locally first, so that a wrong edge does not dim a
   right core: each clipped pixel's excess is multiplied by the smallest headroom min(1, slack / (P * E))
   of the unclipped pixels within LOCAL_BOUND_PX of it, LOCAL_BOUND_ITERATIONS rounds; then one scale per
-  cluster and channel makes the bound hold exactly. Light that lands further out (a ring beyond 3 px, long
-  streaks) is charged to the cluster's edge alone: a lamp proposed too bright can end below the truth (toward
-  the frame, never above it; tests/recon/test_do_no_harm.py, known failure). Charging each pixel over its own
-  PSF footprint instead fixed that but let a too-bright edge around a right core through (README of
-  tools/results/real-data, "The judge alone"). A cluster whose light reaches fewer than
+  cluster and channel makes the bound hold exactly. The window holds the shipped DOE's ring (3-4 px out; a
+  3 px window missed it, so one over-lit ring pixel lowered a whole lamp: README of tools/results/real-data,
+  "A local bound that reaches the DOE's ring"). Light that lands partly beyond the window (a ring 6-9 px
+  out, long streaks) is charged to the pixels it reaches within it: a small lamp proposed too bright can end
+  below the truth (toward the frame, never above it; tests/recon/test_do_no_harm.py, known failure).
+  Charging each pixel over its own PSF footprint, or the smallest change that satisfies the frame, fixed that
+  but kept a too-bright edge around a right core (README of tools/results/real-data, "The judge alone"). A cluster whose light reaches fewer than
   MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has no witness: the frame is kept.
 - Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
@@ -56,7 +58,7 @@ from hdrcam.sensor import fft_convolve
 
 K_SIGMA = 3.0  # noise allowance of the upper bound, in standard deviations
 TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
-LOCAL_BOUND_PX = 3  # a clipped pixel answers for the unclipped pixels this close (the PSF centre's radius)
+LOCAL_BOUND_PX = 5  # a clipped pixel answers for the unclipped pixels this close (the shipped DOE's ring + 1)
 LOCAL_BOUND_ITERATIONS = 3
 EVIDENCE_INNER_PX = 2  # the lens core: a highlight's own edge blurs this far (evidence starts beyond)
 EVIDENCE_ENERGY = 0.99  # the DOE's spill is read as far from the cluster as the PSF holds this share of its light

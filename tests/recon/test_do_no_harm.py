@@ -368,10 +368,13 @@ def test_the_evidence_band_reaches_as_far_as_the_psf_spreads_its_light():
     assert evidence_outer_px(psf_with(0.005)) == EVIDENCE_INNER_PX + 1
 
 
-def test_a_too_bright_edge_around_a_right_core_is_not_kept_above_the_truth(model):
+def test_a_too_bright_edge_around_a_right_core_is_brought_close_to_the_truth_not_left_bright(model):
     """A 32 x 32 window at 6 x white on 0.2, noiseless, through the shipped PSF; the proposal is right in the
-    window's core but 8 x too bright in its outer 3 px. The judge must bring the edge to at most its truth (a
-    bound that charged each pixel over its whole PSF footprint kept it at 1.3 x, and the core at 0.24 x)."""
+    window's core but 8 x too bright in its outer 3 px. The frame cannot tell this edge from a slightly brighter
+    core exactly (the smallest change that satisfies it keeps the edge at 1.5 x), so the judge must err toward
+    the frame: the edge at most 1.25 x its truth (a bound charging each pixel over its whole PSF footprint kept
+    it at 1.3 x), the core kept, and the clipped pixels' squared error at most a quarter of the frame's (a 3 px
+    local window halved the core: 0.72 of the frame's)."""
     from hdrcam.recon.consistency import make_consistent
 
     psf = np.asarray(model.psf, np.float32)
@@ -386,27 +389,38 @@ def test_a_too_bright_edge_around_a_right_core_is_not_kept_above_the_truth(model
     proposal = np.where(clipped, 1.0 + np.where(edge[..., None], 8.0, 1.0) * true_excess, frame).astype(np.float32)
     kept, _, _ = make_consistent(frame, proposal, psf, noise=NoiseModel())
     kept_excess = np.where(clipped, kept - 1.0, 0.0)
-    assert kept_excess[edge].sum() <= true_excess[edge].sum()
-    assert kept_excess[70:90, 70:90].sum() > 0.0  # the core is not dropped altogether
+    assert kept_excess[edge].sum() <= 1.25 * true_excess[edge].sum()
+    assert kept_excess[70:90, 70:90].sum() >= 0.5 * true_excess[70:90, 70:90].sum()
+    squared_error = float(((kept_excess - true_excess)[clipped] ** 2).sum())
+    assert squared_error <= 0.25 * float((true_excess[clipped] ** 2).sum())
 
 
-@pytest.mark.xfail(strict=True, reason="known failure (hdrcam/recon/consistency.py docstring; tools/results/real-data/"
-                   "README.md, 'The judge alone'): the local bound charges light landing beyond LOCAL_BOUND_PX to the "
-                   "lamp's edge pixels, so the lamp ends peaked and the evidence fit cuts it to 0.3 (4 x) or 0.005 "
-                   "(16 x) of the truth")
 @pytest.mark.parametrize("too_bright", [4.0, 16.0])
-def test_a_too_bright_lamp_whose_light_lands_beyond_its_edge_is_lowered_to_the_truth_not_below(too_bright):
+def test_a_too_bright_lamp_whose_ring_lies_inside_the_local_bound_is_lowered_to_the_truth_as_a_whole(too_bright):
     """A 4 x 4 lamp at 40 x white on a flat 0.2 background, noiseless, through a PSF that sends 10 % of each
     pixel's light to a square ring 6 px out. Proposed k times too bright, the judge must bring it to the truth:
     the ring pixels it over-lights are lit by the whole lamp, so the whole lamp is lowered, not the edge pixels
-    nearest the ring (which left a peaked lamp that the evidence fit then cut to 0.3 / 0.005 of the truth)."""
+    nearest the ring (a 3 px local bound left a peaked lamp that the evidence fit then cut to 0.3 / 0.005 of
+    the truth)."""
     from hdrcam.recon.consistency import make_consistent
 
-    psf = np.zeros((3, 15, 15), np.float32)
-    ring = np.zeros((15, 15), bool)
-    ring[1, 1:14] = ring[13, 1:14] = ring[1:14, 1] = ring[1:14, 13] = True
+    kept_excess, true_excess = _judged_ring_lamp(ring_px=6, too_bright=too_bright, make_consistent=make_consistent)
+    assert kept_excess.sum() == pytest.approx(true_excess.sum(), rel=0.05)
+    lamp = kept_excess[46:50, 46:50]
+    assert lamp.max() <= 1.1 * lamp.min()  # lowered as a whole: no peak left by the bound
+
+
+def _judged_ring_lamp(ring_px: int, too_bright: float, make_consistent) -> tuple[np.ndarray, np.ndarray]:
+    """(kept excess, true excess) of a 4 x 4 lamp at 40 x white on 0.2 through a PSF sending 10 % of the light
+    to a square ring ``ring_px`` out, proposed ``too_bright`` x its true excess."""
+    size = 2 * ring_px + 3
+    centre = size // 2
+    psf = np.zeros((3, size, size), np.float32)
+    ring = np.zeros((size, size), bool)
+    low, high = centre - ring_px, centre + ring_px
+    ring[low, low:high + 1] = ring[high, low:high + 1] = ring[low:high + 1, low] = ring[low:high + 1, high] = True
     psf[:, ring] = 0.1 / ring.sum()
-    psf[:, 7, 7] = 0.9
+    psf[:, centre, centre] = 0.9
     truth = np.full((96, 96, 3), 0.2, np.float32)
     truth[46:50, 46:50] = 40.0
     frame = np.clip(convolve(truth, psf), 0.0, 1.0).astype(np.float32)
@@ -415,10 +429,20 @@ def test_a_too_bright_lamp_whose_light_lands_beyond_its_edge_is_lowered_to_the_t
     true_excess = np.where(clipped, truth - 1.0, 0.0)
     proposal = np.where(clipped, 1.0 + too_bright * true_excess, frame).astype(np.float32)
     kept, _, _ = make_consistent(frame, proposal, psf, noise=NoiseModel())
-    kept_excess = np.where(clipped, kept - 1.0, 0.0)
+    return np.where(clipped, kept - 1.0, 0.0), true_excess
+
+
+@pytest.mark.xfail(strict=True, reason="known failure (hdrcam/recon/consistency.py docstring; tools/results/real-data/"
+                   "README.md, 'A local bound that reaches the DOE's ring'): a ring 8 px out lies partly beyond the "
+                   "5 px local bound, which charges its light to the lamp pixels nearest it; the lamp ends peaked and "
+                   "the evidence fit cuts it to 0.67 (4 x) or 0.24 (16 x) of the truth")
+@pytest.mark.parametrize("too_bright", [4.0, 16.0])
+def test_a_too_bright_lamp_whose_ring_lies_partly_beyond_the_local_bound_is_lowered_to_the_truth(too_bright):
+    """As the 6 px ring lamp, with the ring 8 px out (toward the frame: a safe failure, but a loss)."""
+    from hdrcam.recon.consistency import make_consistent
+
+    kept_excess, true_excess = _judged_ring_lamp(ring_px=8, too_bright=too_bright, make_consistent=make_consistent)
     assert kept_excess.sum() == pytest.approx(true_excess.sum(), rel=0.05)
-    lamp = kept_excess[46:50, 46:50]
-    assert lamp.max() <= 1.1 * lamp.min()  # lowered as a whole: no peak left by the bound
 
 
 @pytest.mark.xfail(strict=True, reason="known failure (tools/results/real-data/README.md, 'Where the judge "
