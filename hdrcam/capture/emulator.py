@@ -365,7 +365,7 @@ class EmulatedSonyA7:
             self._step_count += 1
             notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
             if code == Property.SONY_SHUTTER_SPEED and self.faults.reversed_shutter_steps:
-                delta = -delta  # libgphoto2: +1 = one notch shorter (up the notch index); this body counts the other way
+                delta = -delta  # libgphoto2: +1 = one notch shorter (up the notch index); this body counts back
             self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta * notches))
             return Response.OK
         if code in self._buttons:
@@ -480,7 +480,8 @@ class EmulatedSonyA7:
             PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100)),
             PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),
             PropertyDescriptor(Property.FOCUS_MODE, DataType.UINT16, 1, 1, 2, faults.focus_mode, FORM_ENUMERATION,
-                               (1, 2, 0x8004, 0x8005), (1, 2, 0x8004, 0x8005) if faults.secondary_enumerations else None),
+                               (1, 2, 0x8004, 0x8005),
+                               (1, 2, 0x8004, 0x8005) if faults.secondary_enumerations else None),
             PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, faults.exposure_mode),
             PropertyDescriptor(Property.DRIVE_MODE, DataType.UINT16, 1, 1, 1, 1),
             PropertyDescriptor(Property.SONY_FOCUS_FOUND, DataType.UINT8, 0, 1, 1, self._focus_found()),

@@ -15,12 +15,12 @@ a body that does not know it answers with an error, which is logged and ignored.
 
 Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image
 still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2
-accepts for the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the image is ready -
-libgphoto2 reads it two ways: its capture path (camera_sony_capture) takes >= 0x8000 as ready, its event loop
-(camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e. 0x8000 alone as none. So an image is
-ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not already read 0x8000 before the release; a count
-without the flag (the body still writing: "also turns to 1") never is - events
-(0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
+accepts for the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the
+image is ready. libgphoto2 reads that property two ways: its capture path (camera_sony_capture) takes
+>= 0x8000 as ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e.
+0x8000 alone as none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not
+already read 0x8000 before the release; a count without the flag (the body still writing: "also turns to
+1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
 camera answer GetObjectInfo with InvalidObjectHandle, and premature access can crash the firmware. Then
 GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the
 next one awaited the same way. All vendor quirks live here; the generic PTP layer knows nothing

@@ -19,8 +19,9 @@ only take that excess down, never up, so the result is never brighter than the p
   out, long streaks) is charged to the pixels it reaches within it: a small lamp proposed too bright can end
   below the truth (toward the frame, never above it; tests/recon/test_do_no_harm.py, known failure).
   Charging each pixel over its own PSF footprint, or the smallest change that satisfies the frame, fixed that
-  but kept a too-bright edge around a right core (README of tools/results/real-data, "The judge alone"). A cluster whose light reaches fewer than
-  MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has no witness: the frame is kept.
+  but kept a too-bright edge around a right core (README of tools/results/real-data, "The judge alone"). A
+  cluster whose light reaches fewer than MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has
+  no witness: the frame is kept.
 - Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
   excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with

@@ -6,8 +6,9 @@ libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet'
 container is read until its length field is satisfied however short each read is, bytes read past its end
 (a device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
 zero-length read (a ZLP left over) is skipped. Events arrive on the interrupt pipe; they are hints only, so a
-packet that is not a valid event container is dropped, never raised. Class requests on the control pipe cancel a transaction, reset the device and read
-its status. USB failures become ``TransportTimeout``, ``Stalled`` (EPIPE) or ``Disconnected``.
+packet that is not a valid event container is dropped, never raised. Class requests on the control pipe
+cancel a transaction, reset the device and read its status. USB failures become ``TransportTimeout``,
+``Stalled`` (EPIPE) or ``Disconnected``.
 """
 
 from __future__ import annotations
