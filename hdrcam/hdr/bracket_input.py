@@ -1,4 +1,4 @@
-"""The frames of a bracket, read and checked: same size, CFA, ISO and aperture; distinct exposures.
+"""The frames of a bracket, read and checked: same size, CFA, ISO, aperture and bit depth; distinct exposures.
 
 A bracket is a bracket.json (or a folder holding one), a folder of RAW files, or a list of RAW files; without
 a manifest the exposures come from the files' metadata; with one, each frame must still have the sha256 it
@@ -19,6 +19,10 @@ from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
 from hdrcam.io.raw import NotRawError, RawFrame, read_raw
 from hdrcam.parallel import worker_threads
+
+
+WHITE_LEVEL_SPREAD = 1.5  # white levels of one bracket's frames agree within this factor; 12- and 14-bit files
+# of one body differ 4x (4095 vs 16383), and their black levels with them
 
 
 def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, str | None]]:
@@ -101,6 +105,13 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
             if value != expected:
                 raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
                                  "a bracket varies only the shutter")
+    whites = [frame.metadata.white_level_dn for frame in frames]
+    if max(whites) > WHITE_LEVEL_SPREAD * min(whites):
+        odd = frames[int(np.argmin(whites))] if whites[0] == max(whites) else frames[int(np.argmax(whites))]
+        raise InputError(f"{odd.metadata.path}: white level {odd.metadata.white_level_dn:g} differs from "
+                         f"{reference.path.name}'s {reference.white_level_dn:g} DN (a different bit depth, e.g. a "
+                         "12-bit frame among 14-bit ones: continuous drive, bulb or a 12-bit setting); shoot the "
+                         "bracket at one bit depth")
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
         raise InputError("two frames of the bracket have the same exposure time: "

@@ -110,9 +110,10 @@ def dilated(mask: np.ndarray) -> np.ndarray:
 
 class _BracketStrips:
     """Every frame's data on a strip of rows, from the uint16 samples when asked (nothing full-size is stored):
-    the signal (float32 DN above black, or above its dark frame: 2 bytes per sample are read instead of a
-    stored float32 copy's 4) and the clipped samples (at or above the clip threshold of their CFA position),
-    alone or dilated by one pixel (from the strip and one row either side)."""
+    the signal (float32 DN above the frame's own black level - bodies that measure black from the masked border
+    declare a slightly different one in every file - or above its dark frame: 2 bytes per sample are read
+    instead of a stored float32 copy's 4) and the clipped samples (at or above the clip threshold of their CFA
+    position), alone or dilated by one pixel (from the strip and one row either side)."""
 
     def __init__(self, frames: list[RawFrame], darks: list[RawFrame | None], threshold_tile_dn: np.ndarray):
         self.frames, self.darks = frames, darks
@@ -121,19 +122,24 @@ class _BracketStrips:
             if dark is not None and dark.bayer_dn.shape != (self.height, width):
                 raise InputError(f"{dark.metadata.path}: dark frame size {dark.bayer_dn.shape} differs from "
                                  f"{(self.height, width)}")
-        black_tile = frames[0].metadata.black_level_tile()
         rows = min(STRIP_ROWS, self.height)
-        self.black = [tiled(np.roll(black_tile, -phase, axis=0), rows, width) for phase in (0, 1)]
+        strips_of_black: dict[bytes, list[np.ndarray]] = {}  # one pair of strips per distinct black tile
+        self.black = []  # per frame, per CFA row phase of a strip's first row
+        for frame in frames:
+            black_tile = frame.metadata.black_level_tile()
+            if black_tile.tobytes() not in strips_of_black:
+                strips_of_black[black_tile.tobytes()] = [tiled(np.roll(black_tile, -phase, axis=0), rows, width)
+                                                         for phase in (0, 1)]
+            self.black.append(strips_of_black[black_tile.tobytes()])
         # integer data at or above a threshold is at or above its ceiling: one uint16 comparison per sample
         self.first_clipped_dn = [tiled(np.roll(np.ceil(threshold_tile_dn), -phase, axis=0), rows + 2, width
                                        ).astype(np.uint16) for phase in (0, 1)]
 
     def signals(self, rows: slice) -> list[np.ndarray]:
         top, bottom, _ = rows.indices(self.height)
-        black = self.black[top % 2][:bottom - top]
         signals = []
-        for frame, dark in zip(self.frames, self.darks):
-            subtrahend = black if dark is None else dark.bayer_dn[rows]
+        for frame, dark, black in zip(self.frames, self.darks, self.black):
+            subtrahend = black[top % 2][:bottom - top] if dark is None else dark.bayer_dn[rows]
             signals.append(np.subtract(frame.bayer_dn[rows], subtrahend, dtype=np.float32))
         return signals
 

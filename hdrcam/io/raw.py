@@ -17,7 +17,11 @@ repeats a row bit for bit).
 Colour (XYZ -> camera, D65): a DNG's own ColorMatrix tags first (the one calibrated for D65, else
 ColorMatrix2, else ColorMatrix1), then LibRaw's table for the model (LibRaw reports zeros for a model it
 does not know, whatever the DNG says); a missing, zero or singular matrix falls through to the next; with
-none left, camera RGB (``colour_matrix_source`` says which, and users of the matrix warn).
+none left, camera RGB (``colour_matrix_source`` says which, and users of the matrix warn). A DNG's matrix is
+the whole transform of the DNG model, AnalogBalance x CameraCalibration x ColorMatrix (the calibration only
+when its CameraCalibrationSignature matches the ProfileCalibrationSignature, as the DNG spec 1.2+ asks;
+phones' DNGs carry a per-unit calibration). A DNG that gives its as-shot white as AsShotWhiteXY instead of
+AsShotNeutral (LibRaw then reports no white balance) gets the neutral that white gives through that matrix.
 """
 
 from __future__ import annotations
@@ -137,7 +141,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 cfa_pattern="".join(_CFA_LETTERS[i] for i in tile),
                 black_level_dn=tuple(black[i] for i in tile), white_level_dn=float(raw.white_level),
                 xyz_to_camera=matrix,
-                as_shot_neutral=_neutral_from_multipliers(np.array(raw.camera_whitebalance[:3], np.float64)),
+                as_shot_neutral=_as_shot_neutral(np.array(raw.camera_whitebalance[:3], np.float64), tiff, matrix,
+                                                 matrix_source),
                 exposure_s=float(f"{other.shutter_speed:.7g}"),  # LibRaw keeps float32
                 iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
@@ -253,6 +258,7 @@ class _TiffFacts:
     iso: float | None = None
     file_format: str | None = None  # "DNG" when the DNGVersion tag is there
     colour_matrices: list = dataclasses.field(default_factory=list)  # [(tag name, 3 x 3)], preferred first
+    as_shot_white_xy: tuple[float, float] | None = None  # DNG AsShotWhiteXY, when the file has it
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -268,11 +274,16 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             facts.iso = float(iso_value) if iso_value else None
             if 50706 in tags:
                 facts.file_format = "DNG"
-            matrices = [(name, _rationals(tags[code].value), tags[illuminant].value if illuminant in tags else 0)
-                        for name, code, illuminant in (("ColorMatrix2", 50722, 50779), ("ColorMatrix1", 50721, 50778))
+            matrices = [(name, _dng_transform(tags, code, calibration),
+                         tags[illuminant].value if illuminant in tags else 0)
+                        for name, code, illuminant, calibration in (("ColorMatrix2", 50722, 50779, 50724),
+                                                                    ("ColorMatrix1", 50721, 50778, 50723))
                         if code in tags and len(np.ravel(tags[code].value)) >= 9]
             matrices.sort(key=lambda entry: entry[2] != _D65)  # stable: D65 first, then ColorMatrix2, 1
             facts.colour_matrices = [(name, matrix) for name, matrix, _ in matrices]
+            white_xy = _rational_values(tags[50729].value, 2) if 50729 in tags else None
+            if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
+                facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
@@ -289,12 +300,34 @@ def _text(tags, code: int) -> str | None:
 
 def _rationals(value) -> np.ndarray:
     """A TIFF SRATIONAL array (tifffile gives flat numerator, denominator pairs or tuples) as 3 x 3 floats."""
+    return _rational_values(value, 9).reshape(3, 3)
+
+
+def _rational_values(value, count: int) -> np.ndarray:
+    """``count`` floats of a TIFF (S)RATIONAL array given as flat numerator, denominator pairs (or as values);
+    NaN where a denominator is zero or a value is missing."""
     flat = np.asarray(value, dtype=np.float64).ravel()
-    if flat.size >= 18:
-        numerators, denominators = flat[0:18:2], flat[1:18:2]
+    if flat.size >= 2 * count:
+        numerators, denominators = flat[0:2 * count:2], flat[1:2 * count:2]
         with np.errstate(divide="ignore", invalid="ignore"):
             flat = np.where(denominators != 0, numerators / denominators, np.nan)
-    return flat[:9].reshape(3, 3)
+    return np.concatenate([flat[:count], np.full(max(0, count - flat.size), np.nan)])
+
+
+def _dng_transform(tags, matrix_code: int, calibration_code: int) -> np.ndarray:
+    """The DNG model's XYZ -> camera matrix for one calibration illuminant: AnalogBalance x CameraCalibration x
+    ColorMatrix; the calibration only when the CameraCalibrationSignature (50931) equals the
+    ProfileCalibrationSignature (50932), both absent included."""
+    matrix = _rationals(tags[matrix_code].value)
+    if calibration_code in tags and _text(tags, 50931) == _text(tags, 50932):
+        calibration = _rational_values(tags[calibration_code].value, 9).reshape(3, 3)
+        if np.all(np.isfinite(calibration)):
+            matrix = calibration @ matrix
+    if 50727 in tags:
+        balance = _rational_values(tags[50727].value, 3)
+        if np.all(np.isfinite(balance)) and np.all(balance > 0):
+            matrix = np.diag(balance) @ matrix
+    return matrix
 
 
 def _all_pages(tiff: tifffile.TiffFile):
@@ -309,6 +342,17 @@ def _all_pages(tiff: tifffile.TiffFile):
 def _data_end(page) -> int:
     offsets, counts = getattr(page, "dataoffsets", ()), getattr(page, "databytecounts", ())
     return max((int(o) + int(c) for o, c in zip(offsets, counts) if c), default=0)
+
+
+def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str
+                     ) -> np.ndarray:
+    """LibRaw's as-shot white balance, else a DNG's AsShotWhiteXY through the DNG's matrix, else ones."""
+    if not np.all(multipliers > 0) and tiff.as_shot_white_xy and source.startswith("DNG"):
+        x, y = tiff.as_shot_white_xy
+        neutral = xyz_to_camera @ np.array([x / y, 1.0, (1.0 - x - y) / y])
+        if np.all(neutral > 0):
+            return neutral / neutral.max()
+    return _neutral_from_multipliers(multipliers)
 
 
 def _neutral_from_multipliers(multipliers: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ import pytest
 from hdrcam.cli import main
 from hdrcam.capture.ingest import ingest_folder
 from hdrcam.errors import InputError
+from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import fuse
 from hdrcam.hdr.merge import merge_bayer
 from hdrcam.io.ldr_frame import read_ldr_frame
@@ -243,3 +244,75 @@ def test_a_raw_too_large_for_the_memory_is_refused_before_its_pixels_are_decoded
     with pytest.raises(InputError, match=r"small\.dng.*64 x 48 px"):
         read_raw(path)
     assert len(unpacked) == 1
+
+
+# -- a bracket's frames each carry their own levels ----------------------------------------------------------------
+def test_each_frame_is_merged_above_its_own_black_level(tmp_path):
+    """Canon-like bodies measure black from the masked border of every file, so two frames of one bracket can
+    declare 2048 and 2051 DN: the long frame's 3 DN, read as signal, are ~10 % of a dim area's 32 DN."""
+    rng = np.random.default_rng(11)
+    radiance = np.full((64, 96), 2.0e3)  # DN per second above black: 4 DN in the short frame, 32 in the long one
+    for name, exposure, black in (("short.dng", 0.002, 2048), ("long.dng", 0.016, 2051)):
+        bayer = sensor_dn(radiance, exposure, rng, black_dn=(black,) * 4, clip_dn=15000)
+        write_dng(tmp_path / name, bayer, black_dn=(black,) * 4, white_dn=15000, exposure_s=exposure)
+    frames = [read_raw(tmp_path / "short.dng"), read_raw(tmp_path / "long.dng")]
+    merge = merge_bayer(frames, CAMERA, estimate_ratios=False)
+    assert abs(float(np.median(merge.rate / merge.to_relative)) / 2.0e3 - 1) < 0.02
+
+
+def test_a_bracket_mixing_bit_depths_is_refused(tmp_path):
+    """12-bit frames (a 12-bit setting or drive mode; LibRaw reports black 128 / white 4095 for a 12-bit Sony ARW)
+    among 14-bit ones (black 512 / white 16383) would be merged on the wrong scale."""
+    rng = np.random.default_rng(12)
+    write_dng(tmp_path / "a14.dng", sensor_dn(_scene(), 0.002, rng), exposure_s=0.002)
+    twelve_bit = sensor_dn(_scene() / 4, 0.016, rng, black_dn=(128,) * 4, clip_dn=4095)
+    write_dng(tmp_path / "b12.dng", twelve_bit, black_dn=(128,) * 4, white_dn=4095, exposure_s=0.016)
+    with pytest.raises(InputError, match="white level 4095"):
+        read_bracket([tmp_path])
+
+
+# -- DNG colour: the whole XYZ -> camera transform ------------------------------------------------------------------
+def _with_tags(path, extra_tags, drop=()):
+    """Rewrite a DNG written by write_dng with extra TIFF tags (tifffile's extratags tuples), less ``drop``."""
+    import tifffile
+
+    with tifffile.TiffFile(path) as tiff:
+        page = tiff.pages[0]
+        data = page.asarray()
+        tags = [(tag.code, tag.dtype, tag.count, tag.value, True) for tag in page.tags.values()
+                if (tag.code >= 33000 or tag.code in (271, 272)) and tag.code not in drop]
+    tifffile.imwrite(path, data, photometric=tifffile.PHOTOMETRIC.CFA, compression=None, subfiletype=0,
+                     extratags=tags + list(extra_tags), metadata=None)
+    return path
+
+
+def _srationals(values):
+    return tuple(v for value in np.ravel(values) for v in (round(float(value) * 10000), 10000))
+
+
+def test_a_dng_colour_matrix_includes_its_camera_calibration_and_analog_balance(tmp_path):
+    """DNG: XYZ -> camera = AnalogBalance x CameraCalibration x ColorMatrix (phones' DNGs carry a per-unit
+    CameraCalibration); a ColorMatrix alone is off by up to 20 % here."""
+    from tests.io.realistic_dng import XYZ_TO_CAMERA
+
+    calibration, balance = np.diag([1.08, 1.0, 0.93]), (1.1, 1.0, 0.9)
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(13)))
+    _with_tags(path, [(50723, "2i", 9, _srationals(calibration), True),
+                      (50727, "2I", 3, _srationals(balance), True)])
+    meta = read_raw_metadata(path)
+    assert np.allclose(meta.xyz_to_camera, np.diag(balance) @ calibration @ XYZ_TO_CAMERA, atol=1e-4)
+    # a calibration signed for another profile is not applied (DNG 1.2: the signatures must match)
+    _with_tags(path, [(50931, "s", 0, "unit 1234", True), (50932, "s", 0, "generic", True)])
+    assert np.allclose(read_raw_metadata(path).xyz_to_camera, np.diag(balance) @ XYZ_TO_CAMERA, atol=1e-4)
+
+
+def test_an_as_shot_white_given_as_xy_gives_the_neutral(tmp_path):
+    """AsShotWhiteXY instead of AsShotNeutral: LibRaw reports no white balance; the neutral is the camera's
+    response to that white."""
+    from tests.io.realistic_dng import XYZ_TO_CAMERA
+
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(14)))
+    _with_tags(path, [(50729, "2I", 2, (3127, 10000, 3290, 10000), True)], drop={50728})  # AsShotNeutral out
+    xyz = np.array([0.3127 / 0.3290, 1.0, (1 - 0.3127 - 0.3290) / 0.3290])
+    neutral = XYZ_TO_CAMERA @ xyz
+    assert np.allclose(read_raw_metadata(path).as_shot_neutral, neutral / neutral.max(), atol=1e-3)
