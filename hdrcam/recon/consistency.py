@@ -35,9 +35,11 @@ only take that excess down, never up, so the result is never brighter than the p
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
   pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
   cluster whose evidence is strong (z >= STRONG_EVIDENCE_Z in some channel: its streaks confirm its light
-  beyond doubt, as a lamp's do) keeps the proposed shape: a lamp's core lies far above its blob's mean, and the
-  cap cost night scenes most of the judge's loss (tools/results/real-data/README.md, "Strong streak
-  evidence lifts the shape cap").
+  beyond doubt, as a lamp's do) and confirms the amount (every channel keeps at least STRONG_EVIDENCE_SHARE of
+  its proposal) keeps the proposed shape: a lamp's core lies far above its blob's mean, and the cap cost night
+  scenes most of the judge's loss; a proposal the evidence had to cut is wrong somewhere, and its peaks are
+  capped (tools/results/real-data/README.md, "Strong streak evidence lifts the shape cap", "The exemption only
+  where the evidence also confirms the amount").
 
 A clipped pixel deep inside a large clipped region sends no light to any unclipped pixel: only the evidence
 of its cluster's edge and the network's prior (trained on real photographs, hdrcam.data.scenes) decide it.
@@ -69,6 +71,7 @@ MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, 
 MIN_WITNESS_PIXELS = 8  # a cluster whose light reaches fewer unclipped pixels has no evidence: the frame is kept
 SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean excess
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
+STRONG_EVIDENCE_SHARE = 0.8  # ... if every channel also keeps at least this share of its proposal
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
 
 
@@ -140,7 +143,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
                                                 _beyond_reimaged(band, unclipped, kernel)[inner],
                                                 unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
         kept_excess = kept_excess * shares
-        if significance >= STRONG_EVIDENCE_Z:
+        if significance >= STRONG_EVIDENCE_Z and shares.min() >= STRONG_EVIDENCE_SHARE:
             confirmed[crop] |= own
         output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
         share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
