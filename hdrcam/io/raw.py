@@ -30,6 +30,7 @@ import contextlib
 import dataclasses
 import datetime as dt
 import functools
+import logging
 import os
 import sys
 import threading
@@ -247,6 +248,20 @@ def _libraw_stderr_silenced():
                 _saved_stderr_fd = None
 
 
+_reading_tiff_facts = threading.local()  # set while this thread's tifffile reads a RAW file's structure
+
+
+class _QuietWhileReadingRaw(logging.Filter):
+    """Drops tifffile's log records emitted while hdrcam reads a RAW file's TIFF structure: tifffile warns on
+    stderr about formats it cannot decode (ORF, RW2: "RAW format 0x4F52 not supported"), which LibRaw reads."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not getattr(_reading_tiff_facts, "active", False)
+
+
+logging.getLogger("tifffile").addFilter(_QuietWhileReadingRaw())
+
+
 @dataclasses.dataclass
 class _TiffFacts:
     """What the TIFF structure of a RAW file says (nothing for formats that are not TIFF: CR3, RAF, CRW...)."""
@@ -263,6 +278,7 @@ class _TiffFacts:
 
 def _tiff_facts(path: Path) -> _TiffFacts:
     facts = _TiffFacts(file_bytes=path.stat().st_size)
+    _reading_tiff_facts.active = True
     try:
         with tifffile.TiffFile(path) as tiff:
             tags = tiff.pages[0].tags
@@ -287,6 +303,8 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
+    finally:
+        _reading_tiff_facts.active = False
     return facts
 
 

@@ -5,7 +5,8 @@ metadata says 15 000-16 383), and lossy compression (Sony cRAW) scatters the cli
 above the pile-up. Per position of the 2 x 2 CFA tile, the clip level is the most populated single value in
 the top part of the range when it stands far above the histogram just below it (a spike, not the smooth
 tail of a bright area); then every sample at or above it is clipped. Without such a pile-up the clip level
-is the metadata white level. A clip level is never above the white level.
+is the metadata white level - unless no sample reaches the top part of the range, when a pile-up at the largest
+sample is looked for (a white level far above the data). A clip level is never above the white level.
 """
 
 from __future__ import annotations
@@ -29,21 +30,36 @@ def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_l
 
 
 def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: float) -> float:
-    """The clip level (DN) of one CFA position's samples: the pile-up value, else ``white_level_dn``."""
-    span = white_level_dn - black_dn
+    """The clip level (DN) of one CFA position's samples: the pile-up value, else ``white_level_dn``.
+
+    When no sample reaches the top part of the black-to-white range at all, the white level may be far above
+    what the sensor delivers (a DNG without WhiteLevel defaults to 2^bits - 1: 12-bit data in 16-bit samples),
+    so a pile-up at the largest sample, found the same way below it, is taken instead."""
+    level = _pile_up(samples_dn, black_dn, white_level_dn, at_ceiling_only=False)
+    if level is None and samples_dn.size:
+        largest = float(samples_dn.max())
+        if largest < black_dn + SEARCH_FROM * (white_level_dn - black_dn):
+            level = _pile_up(samples_dn, black_dn, largest, at_ceiling_only=True)
+    return float(white_level_dn) if level is None else level
+
+
+def _pile_up(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float, at_ceiling_only: bool) -> float | None:
+    """The most populated value in the top part of black..``ceiling_dn`` if it is a pile-up (module docstring;
+    ``at_ceiling_only``: only a pile-up at ``ceiling_dn`` itself counts), else None."""
+    span = ceiling_dn - black_dn
     low = int(np.ceil(black_dn + SEARCH_FROM * span))
     top = samples_dn[samples_dn >= low].astype(np.int64)
     if top.size < MIN_PILE_SAMPLES:
-        return float(white_level_dn)
+        return None
     counts = np.bincount(top - low)
     peak = int(np.argmax(counts))
     pile = int(counts[peak])
     below = counts[max(0, peak - max(int(BELOW_WINDOW * span), 8)):peak]
     occupied = int(np.count_nonzero(below))
     density = below.sum() / occupied if occupied else 0.0
-    if pile < MIN_PILE_SAMPLES or pile < PILE_CONTRAST * density:
-        return float(white_level_dn)
-    return float(min(low + peak, white_level_dn))
+    if pile < MIN_PILE_SAMPLES or pile < PILE_CONTRAST * density or (at_ceiling_only and low + peak != ceiling_dn):
+        return None
+    return float(min(low + peak, ceiling_dn))
 
 
 def clipped_samples(bayer_dn: np.ndarray, clip_tile_dn: np.ndarray) -> np.ndarray:

@@ -148,6 +148,37 @@ def test_other_makes_levels_and_pile_ups(tmp_path, make, black, clip, white):
     assert frame.metadata.camera_model.startswith(make) and read_ldr_frame(frame.metadata.path)[:, 50:].min() == 1.0
 
 
+def test_a_white_level_far_above_the_data_still_finds_the_pile_up(tmp_path):
+    """12-bit data (black 256, clipping at 4095) in a DNG whose white level says 65535 (what LibRaw reports for a
+    16-bit DNG without WhiteLevel): no sample reaches the top half of 256..65535, so the pile-up at the largest
+    sample is the clip level; before, nothing counted as clipped and reconstruct saw no highlight."""
+    radiance = _scene() * (4095 - 256) / 1.0e4
+    bayer = sensor_dn(radiance, 0.01, np.random.default_rng(21), black_dn=(256,) * 4, clip_dn=4095)
+    frame = read_raw(write_dng(tmp_path / "f.dng", bayer, black_dn=(256,) * 4, white_dn=65535))
+    assert frame.metadata.white_level_dn == 65535 and np.all(frame.clip_level_tile_dn == 4095)
+    assert read_ldr_frame(frame.metadata.path)[:, 50:].min() == 1.0
+    unclipped = sensor_dn(radiance / 4, 0.01, np.random.default_rng(22), black_dn=(256,) * 4, clip_dn=4095)
+    assert unclipped.max() < 4095  # nothing clipped: no pile-up at its largest sample, the white level stays
+    assert np.all(read_raw(write_dng(tmp_path / "g.dng", unclipped, black_dn=(256,) * 4, white_dn=65535)
+                            ).clip_level_tile_dn == 65535)
+
+
+def test_tifffile_complaints_about_formats_it_cannot_decode_are_not_printed(tmp_path):
+    """An Olympus ORF starts "IIRO" (Panasonic RW2 "IIU"): tifffile logs "RAW format 0x4F52 not supported" on
+    stderr while hdrcam reads the TIFF structure, although LibRaw decodes the file; nothing of it is printed
+    (a fresh process: Python's last-resort handler is what prints it, and pytest replaces it)."""
+    import subprocess
+    import sys
+
+    path = write_dng(tmp_path / "f.ORF", sensor_dn(_scene(), 0.01, np.random.default_rng(23)))
+    data = bytearray(path.read_bytes())
+    data[2:4] = b"RO"
+    path.write_bytes(bytes(data))
+    reading = subprocess.run([sys.executable, "-c", f"from hdrcam.io.raw import read_raw; read_raw({str(path)!r})"],
+                             capture_output=True, text=True, check=True)
+    assert reading.stderr == ""
+
+
 def test_no_pile_up_means_the_metadata_white_level():
     rng = np.random.default_rng(2)
     ramp = np.linspace(512, 16300, 200_000) + rng.normal(0, 40, 200_000)  # a smooth bright area near white
