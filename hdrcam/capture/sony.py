@@ -48,7 +48,7 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_E
                                       Operation, Property, Response)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
-from hdrcam.capture.ptp.transport import TransportTimeout, UsbTransport, is_ptp_interface
+from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.raw import read_raw
 
@@ -196,7 +196,7 @@ class SonyA7Camera:
         try:
             self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_A, Property.SONY_PRIORITY_MODE,
                                   data_out=struct.pack("<b", SONY_PRIORITY_APPLICATION))
-        except ResponseError as error:
+        except (ResponseError, TransportTimeout, Stalled) as error:  # libgphoto2: LOG_ON_PTP_E, any PTP error
             self.session.log.append(f"priority mode not set to application ({error}); continuing")
 
     def _sdio_protocol_version(self) -> int:
@@ -244,13 +244,19 @@ class SonyA7Camera:
 
     def refresh(self) -> dict[int, PropertyDescriptor]:
         """Read every property descriptor (0x9209)."""
-        self.properties = unpack_sony_properties(self.session.transact(Operation.SONY_GET_ALL_DEVICE_PROP_DATA)[1])
+        self.properties = unpack_sony_properties(self.session.transact(Operation.SONY_GET_ALL_DEVICE_PROP_DATA)[1],
+                                                 self.session.log)
         return self.properties
 
     def _current(self, code: int) -> int:
         if code not in self.properties:
-            raise CameraError(f"the camera does not report property 0x{code:04X}")
+            raise self._missing(code)
         return self.properties[code].current
+
+    def _missing(self, code: int) -> CameraError:
+        """The error for a property the last 0x9209 answer lacks, with why its list ended early if it did."""
+        cut = next((line for line in reversed(self.session.log) if line.startswith("property list read up to")), None)
+        return CameraError(f"the camera does not report property 0x{code:04X}" + (f" ({cut})" if cut else ""))
 
     # -- exposure --------------------------------------------------------------------------------------------
     def settings(self) -> ExposureSettings:
@@ -317,15 +323,16 @@ class SonyA7Camera:
         self._press(Property.SONY_FULL_PRESS, _RELEASE)
         self._press(Property.SONY_HALF_PRESS, _RELEASE)
         timestamp = dt.datetime.now().replace(microsecond=0)
-        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s,
-                             flag_alone_is_ready=before_release != SONY_PENDING_IMAGE_FLAG)
-        info, content = self._download_raw(CAPTURE_TIMEOUT_S)
+        flag_alone_is_ready = before_release != SONY_PENDING_IMAGE_FLAG
+        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s, flag_alone_is_ready)
+        info, content = self._download_raw(CAPTURE_TIMEOUT_S, flag_alone_is_ready)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
 
-    def _download_raw(self, timeout_s: float):
-        """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped."""
+    def _download_raw(self, timeout_s: float, flag_alone_is_ready: bool):
+        """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped and the
+        next one awaited as the first was (``flag_alone_is_ready``: how 0xD215 = 0x8000 reads for this shot)."""
         for _ in range(OBJECTS_PER_SHOT):
             info = self.session.object_info(SONY_IN_MEMORY_OBJECT)
             content = self.session.get_object(SONY_IN_MEMORY_OBJECT)
@@ -335,7 +342,7 @@ class SonyA7Camera:
             if info.object_format == SONY_RAW_FORMAT:
                 return info, content
             self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
-            self._wait_for_image(timeout_s, flag_alone_is_ready=True)
+            self._wait_for_image(timeout_s, flag_alone_is_ready)
         raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
 
     def _press(self, button: int, state: int) -> None:
@@ -354,16 +361,20 @@ class SonyA7Camera:
     def _current_after_refresh(self, code: int):
         descriptor = self.refresh().get(code)
         if descriptor is None:
-            raise CameraError(f"the camera does not report property 0x{code:04X}")
+            raise self._missing(code)
         return descriptor.current
 
     def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> None:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
         events only shorten the wait between polls."""
         deadline = self.clock.monotonic() + timeout_s
-        while not _image_ready(self._pending_images(), flag_alone_is_ready):
+        while not _image_ready(pending := self._pending_images(), flag_alone_is_ready):
             if self.clock.monotonic() > deadline:
-                raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter release")
+                stuck = (" (0xD215 read 0x8000 before and after: an image left in the camera's memory is not "
+                         "drained on a body that means 'ready' by it; switch the camera off and on)"
+                         if pending == SONY_PENDING_IMAGE_FLAG else "")
+                raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
+                                       f"release{stuck}")
             if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
                     and self.session.transport.interrupt_in is None:
                 self.clock.sleep(STEP_POLL_INTERVAL_S)

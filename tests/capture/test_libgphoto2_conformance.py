@@ -11,7 +11,9 @@ import pytest
 from hdrcam.capture.camera import CameraError
 from hdrcam.capture.emulator import Faults
 from hdrcam.capture.ptp.codes import DataType, Operation, Property
-from hdrcam.capture.ptp.datasets import ObjectInfo, Reader, unpack_sony_properties
+from hdrcam.capture.ptp.container import data, response
+from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
+from hdrcam.capture.ptp.transport import UsbTransport
 from tests.capture.helpers import small_camera
 
 
@@ -156,3 +158,73 @@ def test_damaged_datasets_are_camera_errors():
         unpack_sony_properties(hex_bytes("01000000 00000000 0dd2"))
     with pytest.raises(CameraError):
         Reader(b"\x01").value(DataType.UINT32)
+
+
+class _ScriptedBulkIn:
+    """A bulk-in endpoint that returns whole packets of queued transfers, a short packet ending each."""
+
+    wMaxPacketSize = 512
+
+    def __init__(self, transfers):
+        self.transfers = [bytearray(transfer) for transfer in transfers]
+
+    def read(self, size, timeout_ms):
+        transfer = self.transfers[0]
+        count = len(transfer) if len(transfer) <= size else size - size % self.wMaxPacketSize
+        chunk = bytes(transfer[:count])
+        del transfer[:count]
+        if not transfer:
+            self.transfers.pop(0)
+        return chunk
+
+
+def test_a_container_shorter_than_its_length_field_is_reported_at_once():
+    """A data container 4 bytes short ends in a short packet: one line naming the sizes, not a read that runs
+    on into the response and times out (3 x 10 s for a read-only operation)."""
+    transport = object.__new__(UsbTransport)
+    transport.bulk_in, transport._pending = _ScriptedBulkIn([data(0x1008, 5, bytes(1000)).pack()[:-4],
+                                                             response(0x2001, 5).pack()]), b""
+    with pytest.raises(CameraError, match="1008 bytes of a 1012-byte container"):
+        transport.receive(1000)
+
+
+def test_a_body_that_never_answers_the_priority_mode_still_completes_the_handshake():
+    """libgphoto2 ignores every error of this call (LOG_ON_PTP_E): a timeout included."""
+    camera, _ = emulated(silent_operation=Operation.SONY_SET_CONTROL_DEVICE_A)
+    with camera:
+        assert any("priority mode not set" in line for line in camera.session.log)
+
+
+def test_a_damaged_descriptor_ends_the_list_and_says_why():
+    good = PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, 0x0001007D)
+    later = PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, 1)
+    notes: list[str] = []
+    properties = unpack_sony_properties(struct.pack("<Q", 3) + good.pack() + struct.pack("<HHBB", 0xD2FF, 0x7777, 1, 1)
+                                        + later.pack(), notes)
+    assert set(properties) == {Property.SONY_SHUTTER_SPEED} and "0x7777" in notes[0]
+
+
+def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
+    """RAW + JPEG on a body where 0xD215 = 0x8000 alone means memory empty: after the JPEG's download the RAW
+    appears 0.5 s later; with 0x8000 read before the release, the wait for the RAW must not take 0x8000 as ready
+    (asking 0xFFFFC001 early is the access libgphoto2 says can crash the firmware)."""
+    camera, body = emulated(pending_flag_without_images=True, image_quality=0x13)
+    read_bulk, advance, held = body.bulk_in, body._advance, {}
+
+    def bulk_in(buffer):
+        count = read_bulk(buffer)
+        if body._image is not None and body.downloads % 2 == 1 and not held:  # the JPEG just left
+            held.update(raw=(body._image, body._image_format, body._image_name), due=body.clock.monotonic() + 0.5)
+            body._image = None
+        return count
+
+    def delayed_advance():
+        advance()
+        if "raw" in held and body.clock.monotonic() >= held["due"]:
+            body._image, body._image_format, body._image_name = held.pop("raw")
+
+    with camera:
+        camera.capture(tmp_path, "f0")  # 0xD215 reads 0x8000 from now on when memory is empty
+        body.bulk_in, body._advance = bulk_in, delayed_advance
+        camera.capture(tmp_path, "f1")
+    assert body.premature_requests == 0 and body.downloads == 4

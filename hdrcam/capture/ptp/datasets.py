@@ -277,21 +277,23 @@ def pack_sony_properties(descriptors) -> bytes:
     return Writer().u64(len(descriptors)).bytes() + b"".join(d.pack() for d in descriptors)
 
 
-def unpack_sony_properties(payload: bytes) -> dict[int, PropertyDescriptor]:
+def unpack_sony_properties(payload: bytes, notes: list[str] | None = None) -> dict[int, PropertyDescriptor]:
     """Property code -> descriptor from a 0x9209 payload.
 
     As libgphoto2's ptp_sony_getalldevicepropdesc: the 8-byte count is skipped and descriptors are read
-    until the data ends; a descriptor that cannot be read ends the list (the ones before it are kept) unless
-    none could be read at all."""
+    until the data ends; a descriptor that cannot be read ends the list (the ones before it are kept, and why
+    it ended is appended to ``notes``) unless none could be read at all."""
     reader = Reader(payload)
     count = reader.u64()
     descriptors = []
     while reader.remaining:
         try:
             descriptors.append(PropertyDescriptor.read(reader))
-        except DatasetError:
+        except DatasetError as error:
             if not descriptors:
                 raise
+            if notes is not None:
+                notes.append(f"property list read up to 0x{descriptors[-1].code:04X} only: {error}")
             break
     if count and not descriptors:
         raise DatasetError(f"the property list announces {count} descriptors but holds none")

@@ -105,18 +105,25 @@ class UsbTransport:
         The first read asks for one packet's worth (at least 512 bytes); the rest is read in whole packets
         until the container's length is reached, however few bytes each read returns (one packet per read,
         a 12-byte header sent alone). Bytes past the container's end are kept as the start of the next one;
-        zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped.
+        zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped. A short packet (a
+        read that is not a whole number of packets) ends a transfer: a container still incomplete there is
+        damaged (CameraError), except after a read of exactly its 12-byte header (the header sent alone).
         """
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
         buffer, self._pending = bytearray(self._pending), b""
         with _usb_errors("waiting for the camera", timeout_ms):
+            chunk = b""
             while len(buffer) < HEADER_SIZE:
-                buffer += self._read(first_read, timeout_ms)
+                chunk = self._read(first_read, timeout_ms)
+                buffer += chunk
             length = parse_header(buffer)[0]
             while len(buffer) < length:
+                if chunk and len(chunk) % packet_size and len(chunk) != HEADER_SIZE:
+                    raise CameraError(f"the camera sent {len(buffer)} bytes of a {length}-byte container")
                 remaining = length - len(buffer)
-                buffer += self._read(min(READ_CHUNK_BYTES, -(-remaining // packet_size) * packet_size), timeout_ms)
+                chunk = self._read(min(READ_CHUNK_BYTES, -(-remaining // packet_size) * packet_size), timeout_ms)
+                buffer += chunk
         if len(buffer) > length:
             self._pending = bytes(buffer[length:])
             del buffer[length:]
