@@ -15,9 +15,10 @@ only take that excess down, never up, so the result is never brighter than the p
   of the unclipped pixels within LOCAL_BOUND_PX of it, LOCAL_BOUND_ITERATIONS rounds; then one scale per
   cluster and channel makes the bound hold exactly. The window holds the shipped DOE's ring (3-4 px out; a
   3 px window missed it, so one over-lit ring pixel lowered a whole lamp: README of tools/results/real-data,
-  "A local bound that reaches the DOE's ring"). Light that lands partly beyond the window (a ring 6-9 px
-  out, long streaks) is charged to the pixels it reaches within it: a small lamp proposed too bright can end
-  below the truth (toward the frame, never above it; tests/recon/test_do_no_harm.py, known failure).
+  "A local bound that reaches the DOE's ring"). Light that lands where only a lamp's nearest pixels are
+  within the window of it (a 4 px lamp whose ring lies LOCAL_BOUND_PX + 3 = 8 px out; long streaks) is
+  charged to those pixels alone: a small lamp proposed too bright can end below the truth (toward the frame,
+  never above it; tests/recon/test_do_no_harm.py, known failure).
   Charging each pixel over its own PSF footprint, or the smallest change that satisfies the frame, fixed that
   but kept a too-bright edge around a right core (README of tools/results/real-data, "The judge alone"). A
   cluster whose light reaches fewer than MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has
