@@ -15,3 +15,12 @@ def small_camera(kind: str = "sim", scene: str = "flat:0.5", seed: int = 0, faul
     profile = load_profile("simulated")
     return open_camera(kind, profile, scene=load_scene(scene, HEIGHT_PX, WIDTH_PX, seed=seed), psf=dirac(9),
                        seed=seed, faults=faults, **simulation)
+
+
+def emulated_a7(latencies=None, **faults):
+    """The usb client on the emulated A7 with ``faults`` (hdrcam.capture.emulator.Faults fields); returns (camera,
+    the emulated body)."""
+    from hdrcam.capture.emulator import Faults
+
+    camera, _ = small_camera("sim-usb", faults=Faults(**faults), latencies=latencies)
+    return camera, camera._device.backend.camera

@@ -9,21 +9,16 @@ import struct
 import pytest
 
 from hdrcam.capture.camera import CameraError
-from hdrcam.capture.emulator import Faults
 from hdrcam.capture.ptp.codes import DataType, Operation, Property
 from hdrcam.capture.ptp.container import data, response
 from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
 from hdrcam.capture.ptp.transport import UsbTransport
-from tests.capture.helpers import small_camera
+from tests.capture.helpers import emulated_a7 as emulated
 
 
 def hex_bytes(text: str) -> bytes:
     return bytes.fromhex(text.replace(" ", ""))
 
-
-def emulated(**faults):
-    camera, _ = small_camera("sim-usb", faults=Faults(**faults))
-    return camera, camera._device.backend.camera
 
 
 def recording(body) -> list[bytes]:

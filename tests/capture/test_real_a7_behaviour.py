@@ -18,14 +18,10 @@ from hdrcam.capture.sony import usb_backend_from_environment
 from hdrcam.cli import main
 from hdrcam.io.raw import read_raw
 from tests.capture import hooked_a7
-from tests.capture.helpers import small_camera
+from tests.capture.helpers import emulated_a7 as emulated
 
 AF_S = 2
 
-
-def emulated(latencies=None, **faults):
-    camera, _ = small_camera("sim-usb", faults=Faults(**faults), latencies=latencies)
-    return camera, camera._device.backend.camera
 
 
 # -- the client, fault by fault ------------------------------------------------------------------------------------
