@@ -17,7 +17,7 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import NotRawError, RawFrame, read_raw
+from hdrcam.io.raw import NotRawError, RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.parallel import worker_threads
 
 
@@ -90,6 +90,7 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
             raise
     for error in skipped:  # after the pool: while a frame decodes, LibRaw's silenced stderr would swallow them
         warnings.warn(f"skipped {error}")
+    warn_shading_not_applied(frames)
     if len(frames) < 1:
         raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
     frames.sort(key=lambda f: f.metadata.exposure_s)

@@ -20,7 +20,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import read_exr
-from hdrcam.io.raw import read_raw
+from hdrcam.io.raw import read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
@@ -61,6 +61,7 @@ def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndar
 def raw_relative_rgb(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
     """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced."""
     frame = read_raw(path)
+    warn_shading_not_applied([frame])
     height, width = frame.bayer_dn.shape
     black_tile = frame.metadata.black_level_tile()
     scale_dn = float((frame.clip_level_tile_dn - black_tile).min())

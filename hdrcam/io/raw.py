@@ -34,12 +34,14 @@ import logging
 import os
 import sys
 import threading
+import warnings
 from pathlib import Path
 
 import numpy as np
 import tifffile
 
 from hdrcam.errors import InputError
+from hdrcam.io.dng_opcodes import shading_opcodes
 from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
@@ -73,6 +75,7 @@ class RawMetadata:
     make: str = "unknown"
     file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
     colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
+    shading_not_applied: tuple[str, ...] = ()  # DNG lens-shading opcodes left out (hdrcam.io.dng_opcodes)
 
     def black_level_tile(self) -> np.ndarray:
         """The 2 x 2 tile of black levels (float32), row-major like ``cfa_pattern``."""
@@ -113,6 +116,16 @@ def read_raw(path: str | Path) -> RawFrame:
     return RawFrame(metadata, bayer)
 
 
+def warn_shading_not_applied(frames: list[RawFrame]) -> None:
+    """One warning for the frames whose DNG lens-shading opcodes are left out (call it after decoding: while
+    LibRaw decodes on another thread, its silenced stderr would swallow the line)."""
+    shaded = [frame.metadata for frame in frames if frame.metadata.shading_not_applied]
+    if shaded:
+        warnings.warn(f"{', '.join(meta.path.name for meta in shaded)}: {', '.join(shaded[0].shading_not_applied)} "
+                      "not applied (LibRaw leaves DNG opcodes out): the lens's vignetting and colour shading stay "
+                      "in the data")
+
+
 def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None]:
     import rawpy
 
@@ -150,7 +163,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) else None,
                 camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or "unknown",
                 make=tiff.make or "unknown", file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
-                colour_matrix_source=matrix_source)
+                colour_matrix_source=matrix_source, shading_not_applied=tiff.shading_opcodes)
     except InputError:
         raise
     except rawpy.LibRawFileUnsupportedError as error:
@@ -274,6 +287,7 @@ class _TiffFacts:
     file_format: str | None = None  # "DNG" when the DNGVersion tag is there
     colour_matrices: list = dataclasses.field(default_factory=list)  # [(tag name, 3 x 3)], preferred first
     as_shot_white_xy: tuple[float, float] | None = None  # DNG AsShotWhiteXY, when the file has it
+    shading_opcodes: tuple[str, ...] = ()  # DNG lens-shading opcodes of the raw image (hdrcam.io.dng_opcodes)
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -301,6 +315,8 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
+            if facts.file_format == "DNG":
+                facts.shading_opcodes = tuple(name for page in _all_pages(tiff) for name in shading_opcodes(page.tags))
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:

@@ -17,7 +17,8 @@ from hdrcam.io.raw_clipping import clipped_samples
 
 def raw_summary(path: str | Path) -> dict:
     """make, model, format, size, CFA, exposure, ISO, aperture, black, metadata white, measured clip level,
-    clipped fraction and the colour matrix's source of one RAW file; InputError if it cannot be read."""
+    clipped fraction, the colour matrix's source and any DNG lens shading left out of one RAW file; InputError if
+    it cannot be read."""
     frame = read_raw(path)
     meta = frame.metadata
     clip = frame.clip_level_tile_dn
@@ -33,4 +34,5 @@ def raw_summary(path: str | Path) -> dict:
         "clipped_fraction": float(np.count_nonzero(clipped_samples(frame.bayer_dn, clip)) / frame.bayer_dn.size),
         "max_dn": int(frame.bayer_dn.max()),
         "colour_matrix_source": meta.colour_matrix_source,
+        "shading_not_applied": list(meta.shading_not_applied),
     }

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import struct
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from hdrcam.hdr.merge import merge_bayer
 from hdrcam.io.ldr_frame import read_ldr_frame
 from hdrcam.io.raw import NO_COLOUR_MATRIX, read_raw, read_raw_metadata
 from hdrcam.io.raw_clipping import channel_clip_level
+from hdrcam.io.raw_summary import raw_summary
 from hdrcam.profiles import load_profile
 from tests.io.realistic_dng import XTRANS, sensor_dn, write_dng
 
@@ -347,3 +349,24 @@ def test_an_as_shot_white_given_as_xy_gives_the_neutral(tmp_path):
     xyz = np.array([0.3127 / 0.3290, 1.0, (1 - 0.3127 - 0.3290) / 0.3290])
     neutral = XYZ_TO_CAMERA @ xyz
     assert np.allclose(read_raw_metadata(path).as_shot_neutral, neutral / neutral.max(), atol=1e-3)
+
+
+def _gain_map_opcode_list(height: int, width: int) -> bytes:
+    """An OpcodeList (big-endian) holding one GainMap (ID 9) of 2 x 2 gains over the whole image."""
+    parameters = struct.pack(">IIIIIIII", 0, 0, height, width, 0, 1, 1, 1) + struct.pack(">II", 2, 2)
+    parameters += struct.pack(">dddd", 1.0, 1.0, 0.0, 0.0) + struct.pack(">I", 1) + struct.pack(">4f", 2, 1, 1, 2)
+    return struct.pack(">I", 1) + struct.pack(">IIII", 9, 0x01030000, 0, len(parameters)) + parameters
+
+
+def test_a_dngs_lens_shading_gain_map_left_out_is_said(tmp_path):
+    """Phones and drones write lens shading as an OpcodeList2 GainMap, which LibRaw (rawpy's build) does not
+    apply: the metadata and `inspect` name it, and reading the frame for reconstruction warns once."""
+    path = write_dng(tmp_path / "phone.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(24)))
+    opcodes = _gain_map_opcode_list(64, 96)
+    _with_tags(path, [(51009, "B", len(opcodes), opcodes, True)])
+    assert read_raw_metadata(path).shading_not_applied == ("GainMap (OpcodeList2)",)
+    assert raw_summary(path)["shading_not_applied"] == ["GainMap (OpcodeList2)"]
+    with pytest.warns(UserWarning, match=r"phone\.dng: GainMap \(OpcodeList2\) not applied"):
+        read_ldr_frame(path)
+    plain = write_dng(tmp_path / "plain.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(24)))
+    assert read_raw_metadata(plain).shading_not_applied == ()
