@@ -205,6 +205,8 @@ def _check_bayer(path: Path, raw) -> None:
         raise InputError(f"{path}: not a mosaic RAW (LibRaw: {raw.raw_type.name}, e.g. a Foveon or linear DNG); "
                          "hdrcam merges 2 x 2 Bayer data only")
     pattern = np.asarray(raw.raw_pattern)
+    if raw.num_colors == 1 or pattern.size == 1:
+        raise InputError(f"{path}: monochrome sensor (no colour filter array); hdrcam merges 2 x 2 Bayer data only")
     if pattern.shape == (6, 6):
         raise InputError(f"{path}: X-Trans sensor (6 x 6 colour filter); hdrcam merges 2 x 2 Bayer data only")
     if raw.num_colors != 3 or pattern.shape != (2, 2) or sorted({_CFA_LETTERS[i] for i in pattern.ravel()}) != \

@@ -370,3 +370,21 @@ def test_a_dngs_lens_shading_gain_map_left_out_is_said(tmp_path):
         read_ldr_frame(path)
     plain = write_dng(tmp_path / "plain.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(24)))
     assert read_raw_metadata(plain).shading_not_applied == ()
+
+
+def test_a_monochrome_dng_is_refused_as_monochrome(tmp_path):
+    """A 1-sample LinearRaw DNG (a Leica M Monochrom's kind): LibRaw reports one colour and a 1 x 1 pattern
+    with a stale colour description ("GMCY"); the refusal names what the sensor is."""
+    import tifffile
+
+    path = tmp_path / "mono.dng"
+    bayer = sensor_dn(_scene(), 0.004, np.random.default_rng(25))
+    tifffile.imwrite(path, bayer, photometric="minisblack", compression=None, subfiletype=0, metadata=None,
+                     extratags=[(50706, "B", 4, (1, 4, 0, 0), True), (50717, "H", 1, (16383,), True)])
+    with tifffile.TiffFile(path) as tiff:
+        offset = tiff.pages[0].tags[262].valueoffset
+    data = bytearray(path.read_bytes())
+    data[offset:offset + 2] = struct.pack("<H", 34892)  # PhotometricInterpretation: LinearRaw
+    path.write_bytes(bytes(data))
+    with pytest.raises(InputError, match="monochrome sensor"):
+        read_raw(path)
