@@ -24,7 +24,7 @@ from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import matching_darks
-from hdrcam.hdr.merge import BayerMerge, NoiseModel, dilated, merge_bayer
+from hdrcam.hdr.merge import BayerMerge, dilated, merge_bayer
 from hdrcam.io.raw import RawFrame
 from hdrcam.profiles import CameraSpec
 
@@ -86,7 +86,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     merge = merge_bayer(frames, camera)  # darks find hot pixels; the annulus takes any dark offset out
     meta = frames[0].metadata
     height, width = merge.rate.shape
-    noise = NoiseModel.from_camera(camera, meta.iso or 100.0, meta.white_level_dn, float(np.mean(meta.black_level_dn)))
+    noise = merge.noise
     hot = hot_pixel_map(dark_frames, noise.read_noise_dn) if dark_frames else np.zeros((height, width), bool)
     untrusted = dilated(merge.clipped_everywhere) | hot
     weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import RawMetadata, read_raw_metadata
+from hdrcam.io.raw import RawMetadata, bit_depth_class, read_raw_metadata
 
 DEFAULT_MAX_GAP_S = 10.0
 
@@ -41,7 +41,8 @@ def raw_files(folder: Path) -> list[Path]:
 def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
     by_settings: dict[tuple, list[RawMetadata]] = {}
     for frame in frames:
-        key = (frame.camera_model, frame.iso, round(frame.f_number or 0.0, 1), frame.width_px, frame.height_px)
+        key = (frame.camera_model, frame.iso, round(frame.f_number or 0.0, 1), frame.width_px, frame.height_px,
+               bit_depth_class(frame.white_level_dn))
         by_settings.setdefault(key, []).append(frame)
     brackets, report = [], []
     for group in by_settings.values():

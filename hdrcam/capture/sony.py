@@ -20,11 +20,11 @@ image is ready. libgphoto2 reads that property two ways: its capture path (camer
 >= 0x8000 as ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e.
 0x8000 alone as none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not
 already read 0x8000 before the release; a count without the flag (the body still writing: "also turns to
-1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or early one would make the
-camera answer GetObjectInfo with InvalidObjectHandle, and premature access can crash the firmware. Then
-GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the
-next one awaited the same way. All vendor quirks live here; the generic PTP layer knows nothing
-of Sony.
+1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or
+early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and premature access can
+crash the firmware. Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not
+RAW is dropped and the next one awaited the same way. All vendor quirks live here; the generic PTP layer
+knows nothing of Sony.
 """
 
 from __future__ import annotations
@@ -153,6 +153,7 @@ class SonyA7Camera:
         self.model = "Sony camera"
         self.session: PtpSession | None = None
         self.properties: dict[int, PropertyDescriptor] = {}
+        self._list_cut: str | None = None  # why the last 0x9209 answer's list ended early, if it did
         self.protocol_version = 0
         self.firmware = ""
         self._step_sign = {Property.SONY_SHUTTER_SPEED: 1, Property.SONY_ISO: 1}
@@ -244,8 +245,13 @@ class SonyA7Camera:
 
     def refresh(self) -> dict[int, PropertyDescriptor]:
         """Read every property descriptor (0x9209)."""
+        notes: list[str] = []
         self.properties = unpack_sony_properties(self.session.transact(Operation.SONY_GET_ALL_DEVICE_PROP_DATA)[1],
-                                                 self.session.log)
+                                                 notes)
+        cut = notes[-1] if notes else None
+        if cut is not None and cut != self._list_cut:  # logged once, not at every 0.1 s poll
+            self.session.log.append(cut)
+        self._list_cut = cut
         return self.properties
 
     def _current(self, code: int) -> int:
@@ -254,9 +260,9 @@ class SonyA7Camera:
         return self.properties[code].current
 
     def _missing(self, code: int) -> CameraError:
-        """The error for a property the last 0x9209 answer lacks, with why its list ended early if it did."""
-        cut = next((line for line in reversed(self.session.log) if line.startswith("property list read up to")), None)
-        return CameraError(f"the camera does not report property 0x{code:04X}" + (f" ({cut})" if cut else ""))
+        """The error for a property the last 0x9209 answer lacks, with why that list ended early if it did."""
+        return CameraError(f"the camera does not report property 0x{code:04X}"
+                           + (f" ({self._list_cut})" if self._list_cut else ""))
 
     # -- exposure --------------------------------------------------------------------------------------------
     def settings(self) -> ExposureSettings:

@@ -17,12 +17,8 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import NotRawError, RawFrame, read_raw, warn_shading_not_applied
+from hdrcam.io.raw import NotRawError, RawFrame, bit_depth_class, read_raw, warn_shading_not_applied
 from hdrcam.parallel import worker_threads
-
-
-WHITE_LEVEL_SPREAD = 1.5  # white levels of one bracket's frames agree within this factor; 12- and 14-bit files
-# of one body differ 4x (4095 vs 16383), and their black levels with them
 
 
 def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, str | None]]:
@@ -90,7 +86,8 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
             raise
     for error in skipped:  # after the pool: while a frame decodes, LibRaw's silenced stderr would swallow them
         warnings.warn(f"skipped {error}")
-    warn_shading_not_applied(frames)
+    if kind == "light":  # dark frames record no light to shade
+        warn_shading_not_applied(frames)
     if len(frames) < 1:
         raise InputError(f"{' '.join(map(str, sources))}: no RAW frames found")
     frames.sort(key=lambda f: f.metadata.exposure_s)
@@ -106,12 +103,14 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
             if value != expected:
                 raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
                                  "a bracket varies only the shutter")
-    whites = [frame.metadata.white_level_dn for frame in frames]
-    if max(whites) > WHITE_LEVEL_SPREAD * min(whites):
-        odd = frames[int(np.argmin(whites))] if whites[0] == max(whites) else frames[int(np.argmax(whites))]
-        raise InputError(f"{odd.metadata.path}: white level {odd.metadata.white_level_dn:g} differs from "
-                         f"{reference.path.name}'s {reference.white_level_dn:g} DN (a different bit depth, e.g. a "
-                         "12-bit frame among 14-bit ones: continuous drive, bulb or a 12-bit setting); shoot the "
+    depths = [bit_depth_class(frame.metadata.white_level_dn) for frame in frames]
+    if len(set(depths)) > 1:
+        # the depth most frames have; on a tie the shortest frame's
+        usual = max(depths, key=lambda depth: (depths.count(depth), depth == depths[0]))
+        odd = [frame.metadata for frame, depth in zip(frames, depths) if depth != usual]
+        raise InputError(f"{', '.join(meta.path.name for meta in odd)}: white level {odd[0].white_level_dn:g} DN, "
+                         f"{bit_depth_class(odd[0].white_level_dn)} bits where the bracket's others have {usual} (e.g. "
+                         "a 12-bit frame among 14-bit ones: continuous drive, bulb or a 12-bit setting); shoot the "
                          "bracket at one bit depth")
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):

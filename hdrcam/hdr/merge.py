@@ -31,7 +31,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.hdr.exposure_ratios import estimate_exposures
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import tiled
+from hdrcam.io.raw_clipping import sensor_white_dn, tiled
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
@@ -165,11 +165,12 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     meta = frames[0].metadata
     iso = meta.iso or 100.0
     black = float(np.mean(meta.black_level_dn))
-    noise = NoiseModel.from_camera(camera, iso, meta.white_level_dn, black)
+    clip_tile = clip_level_tile_dn(frames)
+    white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
+    noise = NoiseModel.from_camera(camera, iso, white, black)
     darks = darks or [None] * len(frames)
     read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
     notes: list[str] = []
-    clip_tile = clip_level_tile_dn(frames)
     black_tile = meta.black_level_tile()
     threshold_tile = black_tile + (clip_tile - black_tile) * (1.0 - CLIP_MARGIN)
     clip = float((clip_tile - black_tile).min())
@@ -178,7 +179,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     bracket = _BracketStrips(frames, darks, threshold_tile)
     row_strips = strips(height, STRIP_ROWS)
     labelled = np.array([frame.metadata.exposure_s for frame in frames])
-    to_relative = 1.0 / ((meta.white_level_dn - black) * (iso / 100.0))
+    to_relative = 1.0 / ((white - black) * (iso / 100.0))
     rate = np.empty((height, width), np.float32)
     variance = np.empty((height, width), np.float32) if with_variance else None
     usable_frames = np.empty((height, width), np.uint8)

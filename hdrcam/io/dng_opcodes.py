@@ -17,14 +17,14 @@ SHADING_OPCODES = {9: "GainMap", 3: "FixVignetteRadial"}
 
 
 def shading_opcodes(tags) -> list[str]:
-    """'GainMap (OpcodeList2)'-style names of the shading opcodes in a TIFF page's tags (tifffile TiffTags);
-    an opcode list that cannot be parsed is skipped."""
+    """'GainMap (OpcodeList2)'-style names of the shading opcodes in a TIFF page's tags (tifffile TiffTags), each
+    once; an opcode list that cannot be parsed is skipped."""
     found = []
     for code, list_name in OPCODE_LISTS.items():
         if code in tags:
             found += [f"{SHADING_OPCODES[opcode]} ({list_name})" for opcode in _opcode_ids(bytes(tags[code].value))
                       if opcode in SHADING_OPCODES]
-    return found
+    return list(dict.fromkeys(found))  # phones write a GainMap per Bayer plane: each name once
 
 
 def _opcode_ids(data: bytes) -> list[int]:

@@ -116,6 +116,12 @@ def read_raw(path: str | Path) -> RawFrame:
     return RawFrame(metadata, bayer)
 
 
+def bit_depth_class(white_level_dn: float) -> int:
+    """The bit depth a white level belongs to (4095 -> 12, 15000 and 16383 -> 14, 65535 -> 16): frames of one
+    body recorded at 12 and 14 bits cannot be merged on one scale."""
+    return int(round(float(np.log2(max(white_level_dn, 1.0) + 1.0))))
+
+
 def warn_shading_not_applied(frames: list[RawFrame]) -> None:
     """One warning for the frames whose DNG lens-shading opcodes are left out (call it after decoding: while
     LibRaw decodes on another thread, its silenced stderr would swallow the line)."""
@@ -318,7 +324,9 @@ def _tiff_facts(path: Path) -> _TiffFacts:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
             if facts.file_format == "DNG":
-                facts.shading_opcodes = tuple(name for page in _all_pages(tiff) for name in shading_opcodes(page.tags))
+                full_resolution = [page for page in _all_pages(tiff) if _subfile_type(page) == 0]  # not previews
+                facts.shading_opcodes = tuple(dict.fromkeys(name for page in full_resolution
+                                                            for name in shading_opcodes(page.tags)))
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:
@@ -373,6 +381,11 @@ def _all_pages(tiff: tifffile.TiffFile):
         page = stack.pop()
         yield page
         stack.extend(getattr(page, "pages", None) or [])
+
+
+def _subfile_type(page) -> int:
+    """A TIFF page's NewSubfileType (0: the full-resolution image; 1: a reduced preview)."""
+    return int(page.tags[254].value) if 254 in page.tags else 0
 
 
 def _data_end(page) -> int:

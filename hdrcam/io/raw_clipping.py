@@ -62,6 +62,14 @@ def _pile_up(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float, at_ceil
     return float(min(low + peak, ceiling_dn))
 
 
+def sensor_white_dn(white_level_dn: float, black_dn: float, clip_tile_dn: np.ndarray) -> float:
+    """The white level that defines a full well: the metadata's, unless the clip levels were found below the
+    top part of its range (the fallback of :func:`channel_clip_level`: a white level far above the data), when
+    the highest clip level is the sensor's white."""
+    highest = float(np.max(clip_tile_dn))
+    return highest if highest < black_dn + SEARCH_FROM * (white_level_dn - black_dn) else float(white_level_dn)
+
+
 def clipped_samples(bayer_dn: np.ndarray, clip_tile_dn: np.ndarray) -> np.ndarray:
     """H x W bool: samples at or above their CFA position's clip level."""
     mask = np.empty(bayer_dn.shape, bool)

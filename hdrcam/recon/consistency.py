@@ -36,11 +36,13 @@ only take that excess down, never up, so the result is never brighter than the p
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
   pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
   cluster whose evidence is strong (z >= STRONG_EVIDENCE_Z in some channel: its streaks confirm its light
-  beyond doubt, as a lamp's do) and confirms the amount (every channel keeps at least STRONG_EVIDENCE_SHARE of
-  its proposal) keeps the proposed shape: a lamp's core lies far above its blob's mean, and the cap cost night
-  scenes most of the judge's loss; a proposal the evidence had to cut is wrong somewhere, and its peaks are
-  capped (tools/results/real-data/README.md, "Strong streak evidence lifts the shape cap", "The exemption only
-  where the evidence also confirms the amount").
+  beyond doubt, as a lamp's do) and confirms the amount (its evidence share - of the excess the upper bound
+  left - is at least STRONG_EVIDENCE_SHARE in every channel) keeps the proposed shape: a lamp's core lies far
+  above its blob's mean, and the cap cost night scenes most of the judge's loss; a proposal the evidence had
+  to cut is wrong somewhere, and its peaks are capped - also a true lamp proposed a few times too bright whose
+  bound and evidence cut it unevenly across channels (a 400 x white core proposed 3 x too bright ends near 35
+  instead of 415; tools/results/real-data/README.md, "Strong streak evidence lifts the shape cap", "The
+  exemption only where the evidence also confirms the amount").
 
 A clipped pixel deep inside a large clipped region sends no light to any unclipped pixel: only the evidence
 of its cluster's edge and the network's prior (trained on real photographs, hdrcam.data.scenes) decide it.
@@ -72,7 +74,7 @@ MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, 
 MIN_WITNESS_PIXELS = 8  # a cluster whose light reaches fewer unclipped pixels has no evidence: the frame is kept
 SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean excess
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
-STRONG_EVIDENCE_SHARE = 0.8  # ... if every channel also keeps at least this share of its proposal
+STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
 
 

@@ -20,7 +20,6 @@ def hex_bytes(text: str) -> bytes:
     return bytes.fromhex(text.replace(" ", ""))
 
 
-
 def recording(body) -> list[bytes]:
     """Every bulk-out write the host makes, in order."""
     writes: list[bytes] = []
@@ -183,11 +182,48 @@ def test_a_container_shorter_than_its_length_field_is_reported_at_once():
         transport.receive(1000)
 
 
+def test_a_container_cut_short_after_a_12_byte_packet_is_reported_too():
+    """Only a read of the header alone (the buffer exactly 12 bytes) may be followed by more of the container."""
+    transport = object.__new__(UsbTransport)
+    packed = data(0x1009, 6, bytes(1000)).pack()
+    transport.bulk_in, transport._pending = _ScriptedBulkIn([packed[:524], response(0x2001, 6).pack()]), b""
+    with pytest.raises(CameraError, match="524 bytes of a 1012-byte container"):
+        transport.receive(1000)
+
+
 def test_a_body_that_never_answers_the_priority_mode_still_completes_the_handshake():
     """libgphoto2 ignores every error of this call (LOG_ON_PTP_E): a timeout included."""
     camera, _ = emulated(silent_operation=Operation.SONY_SET_CONTROL_DEVICE_A)
     with camera:
         assert any("priority mode not set" in line for line in camera.session.log)
+
+
+def test_a_list_shorter_than_its_count_says_so():
+    good = PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, 0x0001007D)
+    notes: list[str] = []
+    unpack_sony_properties(struct.pack("<Q", 30) + good.pack(), notes)
+    assert notes == ["property list holds 1 of the 30 descriptors it announces"]
+
+
+def test_why_a_list_ended_early_is_logged_once_and_only_cited_while_it_holds():
+    camera, body = emulated()
+    answer = body._op_9209
+    damaged = {"on": True}
+
+    def op_9209(request, payload):
+        data_, code = answer(request, payload)
+        return (data_ + struct.pack("<HHBB", 0xD2FF, 0x7777, 1, 1) if damaged["on"] else data_), code
+
+    body._op_9209 = op_9209
+    with camera:
+        for _ in range(3):
+            camera.refresh()
+        assert sum("property list read up to" in line for line in camera.session.log) == 1
+        damaged["on"] = False
+        camera.refresh()
+        with pytest.raises(CameraError) as missing:
+            camera._current(0xD2FE)
+        assert "read up to" not in str(missing.value)
 
 
 def test_a_damaged_descriptor_ends_the_list_and_says_why():

@@ -159,6 +159,10 @@ def test_a_white_level_far_above_the_data_still_finds_the_pile_up(tmp_path):
     frame = read_raw(write_dng(tmp_path / "f.dng", bayer, black_dn=(256,) * 4, white_dn=65535))
     assert frame.metadata.white_level_dn == 65535 and np.all(frame.clip_level_tile_dn == 4095)
     assert read_ldr_frame(frame.metadata.path)[:, 50:].min() == 1.0
+    frames = [read_raw(write_dng(tmp_path / f"{white}.dng", bayer, black_dn=(256,) * 4, white_dn=white))
+              for white in (4095, 65535)]  # the same data declared both ways merges to the same units
+    rates = [merge_bayer([frame], CAMERA, estimate_ratios=False).rate for frame in frames]
+    np.testing.assert_allclose(rates[1], rates[0], rtol=1e-6)
     unclipped = sensor_dn(radiance / 4, 0.01, np.random.default_rng(22), black_dn=(256,) * 4, clip_dn=4095)
     assert unclipped.max() < 4095  # nothing clipped: no pile-up at its largest sample, the white level stays
     assert np.all(read_raw(write_dng(tmp_path / "g.dng", unclipped, black_dn=(256,) * 4, white_dn=65535)
@@ -300,7 +304,7 @@ def test_a_bracket_mixing_bit_depths_is_refused(tmp_path):
     write_dng(tmp_path / "a14.dng", sensor_dn(_scene(), 0.002, rng), exposure_s=0.002)
     twelve_bit = sensor_dn(_scene() / 4, 0.016, rng, black_dn=(128,) * 4, clip_dn=4095)
     write_dng(tmp_path / "b12.dng", twelve_bit, black_dn=(128,) * 4, white_dn=4095, exposure_s=0.016)
-    with pytest.raises(InputError, match="white level 4095"):
+    with pytest.raises(InputError, match="b12.dng: white level 4095 DN, 12 bits where the bracket.s others have 14"):
         read_bracket([tmp_path])
 
 
@@ -388,3 +392,31 @@ def test_a_monochrome_dng_is_refused_as_monochrome(tmp_path):
     path.write_bytes(bytes(data))
     with pytest.raises(InputError, match="monochrome sensor"):
         read_raw(path)
+
+
+def test_ingest_does_not_group_frames_of_two_bit_depths(tmp_path):
+    """The same bit-depth rule as fuse's: a 12-bit frame among 14-bit ones is not put in their bracket."""
+    rng = np.random.default_rng(26)
+    write_dng(tmp_path / "a.dng", sensor_dn(_scene(), 0.002, rng), exposure_s=0.002)
+    twelve_bit = sensor_dn(_scene() / 4, 0.008, rng, black_dn=(128,) * 4, clip_dn=4095)
+    write_dng(tmp_path / "b.dng", twelve_bit, black_dn=(128,) * 4, white_dn=4095, exposure_s=0.008)
+    write_dng(tmp_path / "c.dng", sensor_dn(_scene(), 0.016, rng), exposure_s=0.016)
+    assert main(["ingest", str(tmp_path)]) == 0
+    for manifest in tmp_path.glob("bracket-*.json"):
+        assert len({frame.metadata.white_level_dn for frame in read_bracket([manifest])}) == 1
+
+
+def test_shading_opcodes_are_named_once_and_only_for_the_raw_image(tmp_path):
+    """A GainMap per Bayer plane (as phones write four) is one name; an opcode on a preview IFD is not the raw
+    image's."""
+    import tifffile
+
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(27)))
+    one = _gain_map_opcode_list(64, 96)
+    four = struct.pack(">I", 4) + one[4:] * 4
+    _with_tags(path, [(51009, "B", len(four), four, True)])
+    assert read_raw_metadata(path).shading_not_applied == ("GainMap (OpcodeList2)",)
+    vignette = struct.pack(">I", 1) + struct.pack(">IIII", 3, 0x01030000, 0, 56) + bytes(56)
+    tifffile.imwrite(path, np.zeros((8, 12, 3), np.uint8), append=True, subfiletype=1, photometric="rgb",
+                     extratags=[(51022, "B", len(vignette), vignette, True)], metadata=None)
+    assert read_raw_metadata(path).shading_not_applied == ("GainMap (OpcodeList2)",)

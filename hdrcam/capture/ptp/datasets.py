@@ -282,7 +282,7 @@ def unpack_sony_properties(payload: bytes, notes: list[str] | None = None) -> di
 
     As libgphoto2's ptp_sony_getalldevicepropdesc: the 8-byte count is skipped and descriptors are read
     until the data ends; a descriptor that cannot be read ends the list (the ones before it are kept, and why
-    it ended is appended to ``notes``) unless none could be read at all."""
+    it ended is appended to ``notes``, as is a list shorter than its count) unless none could be read at all."""
     reader = Reader(payload)
     count = reader.u64()
     descriptors = []
@@ -295,6 +295,8 @@ def unpack_sony_properties(payload: bytes, notes: list[str] | None = None) -> di
             if notes is not None:
                 notes.append(f"property list read up to 0x{descriptors[-1].code:04X} only: {error}")
             break
+    if notes is not None and descriptors and len(descriptors) < count and not notes:
+        notes.append(f"property list holds {len(descriptors)} of the {count} descriptors it announces")
     if count and not descriptors:
         raise DatasetError(f"the property list announces {count} descriptors but holds none")
     return {descriptor.code: descriptor for descriptor in descriptors}

@@ -119,7 +119,7 @@ class UsbTransport:
                 buffer += chunk
             length = parse_header(buffer)[0]
             while len(buffer) < length:
-                if chunk and len(chunk) % packet_size and len(chunk) != HEADER_SIZE:
+                if chunk and len(chunk) % packet_size and len(buffer) != HEADER_SIZE:
                     raise CameraError(f"the camera sent {len(buffer)} bytes of a {length}-byte container")
                 remaining = length - len(buffer)
                 chunk = self._read(min(READ_CHUNK_BYTES, -(-remaining // packet_size) * packet_size), timeout_ms)
