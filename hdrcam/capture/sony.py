@@ -374,7 +374,8 @@ class SonyA7Camera:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
         events only shorten the wait between polls."""
         deadline = self.clock.monotonic() + timeout_s
-        while not _image_ready(pending := self._pending_images(), flag_alone_is_ready):
+        while not _image_ready(pending := self._current_after_refresh(Property.SONY_PENDING_IMAGES),
+                               flag_alone_is_ready):
             if self.clock.monotonic() > deadline:
                 stuck = (" (0xD215 read 0x8000 before and after: an image left in the camera's memory is not "
                          "drained on a body that means 'ready' by it; switch the camera off and on)"
@@ -391,15 +392,12 @@ class SonyA7Camera:
             if self.session.transport.read_event(1) is None:
                 return
 
-    def _pending_images(self) -> int:
-        return self.refresh()[Property.SONY_PENDING_IMAGES].current
-
     def _drain_pending_image(self) -> int:
         """An image left in the camera's memory would be returned instead of the next one: fetch and drop it
         while 0xD215 is above 0x8000 (both of libgphoto2's readings agree there). A body whose 0xD215 lags
         behind answers InvalidObjectHandle: that ends the drain, it is not an error. Returns 0xD215 after it."""
         for _ in range(DRAIN_MAX_OBJECTS):
-            pending = self._pending_images()
+            pending = self._current_after_refresh(Property.SONY_PENDING_IMAGES)
             if pending <= SONY_PENDING_IMAGE_FLAG:
                 return pending
             try:

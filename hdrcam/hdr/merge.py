@@ -15,8 +15,9 @@ sensor in one second at base ISO).
 
 Speed: every per-pixel step runs on strips of rows in a thread pool (one thread per core; numpy releases the
 GIL), converting the uint16 data of the strip to float32 signals and finding its clipped samples as it goes
-(no full-size float copy of the frames, no full-size masks), with in-place float32 arithmetic; each pixel's arithmetic does not depend on the strip, so a strip
-size changes nothing but the exposure-ratio sums' rounding (hdrcam.hdr.exposure_ratios, ~1e-7).
+(no full-size float copy of the frames, no full-size masks), with in-place float32 arithmetic; each pixel's
+arithmetic does not depend on the strip, so a strip size changes nothing but the exposure-ratio sums' rounding
+(hdrcam.hdr.exposure_ratios, ~1e-7).
 """
 
 from __future__ import annotations

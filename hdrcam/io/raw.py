@@ -322,9 +322,10 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             white_xy = _rational_values(tags[50729].value, 2) if 50729 in tags else None
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
-            facts.data_end_bytes = max((_data_end(page) for page in _all_pages(tiff)), default=0)
+            pages = list(_all_pages(tiff))
+            facts.data_end_bytes = max((_data_end(page) for page in pages), default=0)
             if facts.file_format == "DNG":
-                full_resolution = [page for page in _all_pages(tiff) if _subfile_type(page) == 0]  # not previews
+                full_resolution = [page for page in pages if _subfile_type(page) == 0]  # not previews
                 facts.shading_opcodes = tuple(dict.fromkeys(name for page in full_resolution
                                                             for name in shading_opcodes(page.tags)))
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
@@ -364,7 +365,7 @@ def _dng_transform(tags, matrix_code: int, calibration_code: int) -> np.ndarray:
     ProfileCalibrationSignature (50932), both absent included."""
     matrix = _rationals(tags[matrix_code].value)
     if calibration_code in tags and _text(tags, 50931) == _text(tags, 50932):
-        calibration = _rational_values(tags[calibration_code].value, 9).reshape(3, 3)
+        calibration = _rationals(tags[calibration_code].value)
         if np.all(np.isfinite(calibration)):
             matrix = calibration @ matrix
     if 50727 in tags:

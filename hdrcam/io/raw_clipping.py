@@ -38,7 +38,7 @@ def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: 
     level = _pile_up(samples_dn, black_dn, white_level_dn, at_ceiling_only=False)
     if level is None and samples_dn.size:
         largest = float(samples_dn.max())
-        if largest < black_dn + SEARCH_FROM * (white_level_dn - black_dn):
+        if _below_top_part(largest, black_dn, white_level_dn):
             level = _pile_up(samples_dn, black_dn, largest, at_ceiling_only=True)
     return float(white_level_dn) if level is None else level
 
@@ -67,7 +67,12 @@ def sensor_white_dn(white_level_dn: float, black_dn: float, clip_tile_dn: np.nda
     top part of its range (the fallback of :func:`channel_clip_level`: a white level far above the data), when
     the highest clip level is the sensor's white."""
     highest = float(np.max(clip_tile_dn))
-    return highest if highest < black_dn + SEARCH_FROM * (white_level_dn - black_dn) else float(white_level_dn)
+    return highest if _below_top_part(highest, black_dn, white_level_dn) else float(white_level_dn)
+
+
+def _below_top_part(value_dn: float, black_dn: float, white_level_dn: float) -> bool:
+    """True when ``value_dn`` lies below the part of black..white where a pile-up is searched for."""
+    return value_dn < black_dn + SEARCH_FROM * (white_level_dn - black_dn)
 
 
 def clipped_samples(bayer_dn: np.ndarray, clip_tile_dn: np.ndarray) -> np.ndarray:

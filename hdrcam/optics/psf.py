@@ -85,7 +85,8 @@ class OpticalSetup:
         if simulation.propagation == "fraunhofer" and upsample is not None:
             raise InputError(f"upsample {upsample}: samples per pixel set the grid of the fresnel and "
                              f"angular_spectrum propagations; {profile.name}'s chirp-z (fraunhofer) propagation "
-                             f"always takes {FRAUNHOFER_SUBPIXELS} points per pixel (`hdrcam psf --propagation fresnel` sets them)")
+                             f"always takes {FRAUNHOFER_SUBPIXELS} points per pixel (`hdrcam psf --propagation "
+                             "fresnel` sets them)")
         grid = None if simulation.propagation == "fraunhofer" else SimulationGrid.for_optics(
             pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
             focal_length_m=profile.lens.focal_length_m, shortest_wavelength_m=min(min(b) for b in bands),
