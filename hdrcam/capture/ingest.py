@@ -1,6 +1,7 @@
 """RAW ingest: read a folder of RAW files and group them into exposure brackets.
 
-A bracket is a run of frames from one camera at one ISO, aperture and frame size, taken close together
+A bracket is a run of frames from one camera (for files that name none, one sensor as LibRaw reports it:
+``hdrcam.io.raw.sensor_fingerprint``) at one ISO, aperture and frame size, taken close together
 (no gap longer than ``max_gap_s`` plus the previous exposure), with distinct exposure times; a repeated
 exposure starts the next bracket. Brackets shot alternately (e.g. at two ISOs) are separated by their
 settings. Every file of the folder is offered to LibRaw (no list of suffixes): one it does not open, or
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import RawMetadata, bit_depth_class, read_raw_metadata
+from hdrcam.io.raw import RawMetadata, bit_depth_class, read_raw_metadata, sensor_fingerprint
 
 DEFAULT_MAX_GAP_S = 10.0
 
@@ -41,8 +42,8 @@ def raw_files(folder: Path) -> list[Path]:
 def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
     by_settings: dict[tuple, list[RawMetadata]] = {}
     for frame in frames:
-        key = (frame.camera_model, frame.iso, round(frame.f_number or 0.0, 1), frame.width_px, frame.height_px,
-               bit_depth_class(frame.white_level_dn))
+        key = (frame.camera_model, sensor_fingerprint(frame), frame.iso, round(frame.f_number or 0.0, 1),
+               frame.width_px, frame.height_px, bit_depth_class(frame.white_level_dn))
         by_settings.setdefault(key, []).append(frame)
     brackets, report = [], []
     for group in by_settings.values():

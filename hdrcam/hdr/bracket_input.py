@@ -1,4 +1,6 @@
-"""The frames of a bracket, read and checked: same size, CFA, ISO, aperture and bit depth; distinct exposures.
+"""The frames of a bracket, read and checked: one camera; same size, CFA, ISO, aperture and bit depth; distinct
+exposures. Where the files name no camera (CR3, RAF, ...: not TIFF), frames of one body are told by what LibRaw
+reports of its sensor (``hdrcam.io.raw.sensor_fingerprint``).
 
 A bracket is a bracket.json (or a folder holding one), a folder of RAW files, or a list of RAW files; without
 a manifest the exposures come from the files' metadata; with one, each frame must still have the sha256 it
@@ -17,7 +19,8 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import NotRawError, RawFrame, bit_depth_class, read_raw, warn_shading_not_applied
+from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, read_raw, sensor_fingerprint,
+                           warn_shading_not_applied)
 from hdrcam.parallel import worker_threads
 
 
@@ -99,10 +102,7 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                   ("CFA pattern", meta.cfa_pattern, reference.cfa_pattern),
                   ("ISO", meta.iso, reference.iso),
                   ("aperture", _rounded(meta.f_number), _rounded(reference.f_number)))
-        for what, value, expected in checks:
-            if value != expected:
-                raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
-                                 "a bracket varies only the shutter")
+        _refuse_differences(meta, reference, checks)
     depths = [bit_depth_class(frame.metadata.white_level_dn) for frame in frames]
     if len(set(depths)) > 1:
         # the depth most frames have; on a tie the shortest frame's
@@ -112,6 +112,10 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                          f"{bit_depth_class(odd[0].white_level_dn)} bits where the bracket's others have {usual} (e.g. "
                          "a 12-bit frame among 14-bit ones: continuous drive, bulb or a 12-bit setting); shoot the "
                          "bracket at one bit depth")
+    for frame in frames[1:]:  # after the bit depth check, which says more of a white level of another depth
+        pairs = zip(sensor_fingerprint(frame.metadata), sensor_fingerprint(reference))  # none for a named camera
+        _refuse_differences(frame.metadata, reference, [(what, value, expected)
+                                                        for (what, value), (_, expected) in pairs])
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
         raise InputError("two frames of the bracket have the same exposure time: "
@@ -120,6 +124,14 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
         if not np.isfinite(frame.metadata.exposure_s):
             raise InputError(f"{frame.metadata.path}: exposure time is not finite")
     return frames
+
+
+def _refuse_differences(meta: RawMetadata, reference: RawMetadata, checks) -> None:
+    """InputError at the first (property, frame's value, reference's value) of ``checks`` whose values differ."""
+    for what, value, expected in checks:
+        if value != expected:
+            raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
+                             "a bracket varies only the shutter")
 
 
 def _rounded(f_number: float | None) -> float | None:

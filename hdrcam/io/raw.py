@@ -7,12 +7,16 @@ does not report ISO for DNGs, nor the camera's make and model; they are read fro
 CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest can override ISO.
 
 Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
-not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs), and truncated files.
-LibRaw fills a truncated file's missing rows by repeating the last row it decoded and reports no error (an
-A7R III ARW cut to half decodes with its last 1787 rows identical), so a TIFF-based file (ARW, NEF, CR2,
-DNG, ...) is refused when its strips or tiles run past the end of the file, and a file of another format
-(CR3, RAF, ...) when its last FILLED_ROWS or more rows repeat one row that is not flat (a sensor's noise never
-repeats a row bit for bit).
+not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's Quad-Bayer or
+staggered CFA), and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
+repeating the last row they decoded and report no error (an A7R III ARW cut to half decodes with its last 1787
+rows identical), so a TIFF-based file (ARW, NEF, CR2, DNG, ...) is refused when its strips or tiles run past
+the end of the file, and a file of another format (CR3, RAF, ...) when its last FILLED_ROWS or more rows repeat
+one row that is not flat (a sensor's noise never repeats a row bit for bit). An uncompressed strip needs its
+rows' bytes, whatever its byte count says beyond them; a compressed strip whose count is at least its
+uncompressed size is not believed (older Hasselblad 3FRs declare the uncompressed size, past the end of the
+file: exiftool/exiftool#476), and such a file is checked by its rows as a CR3 is. LibRaw's other decoders stop
+at the end of the file with an "Input/output error", refused as a truncation too.
 
 Colour (XYZ -> camera, D65): a DNG's own ColorMatrix tags first (the one calibrated for D65, else
 ColorMatrix2, else ColorMatrix1), then LibRaw's table for the model (LibRaw reports zeros for a model it
@@ -31,6 +35,7 @@ import dataclasses
 import datetime as dt
 import functools
 import logging
+import math
 import os
 import sys
 import threading
@@ -46,6 +51,7 @@ from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
 NO_COLOUR_MATRIX = "none (camera RGB)"
+UNKNOWN_CAMERA = "unknown"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
 FILLED_ROWS = 8
@@ -62,6 +68,7 @@ class RawMetadata:
     path: Path
     width_px: int
     height_px: int
+    raw_size_px: tuple[int, int]  # LibRaw's raw data, width x height: the visible area and the masked border
     cfa_pattern: str  # the 2 x 2 tile starting at the top-left visible pixel, e.g. "RGGB"
     black_level_dn: tuple[float, float, float, float]  # per tile position, row-major like cfa_pattern
     white_level_dn: float  # the metadata's white level; the sensor may clip below it (see clip levels)
@@ -72,7 +79,7 @@ class RawMetadata:
     f_number: float | None
     timestamp: dt.datetime | None
     camera_model: str  # make and model, e.g. "Sony ILCE-7RM3"
-    make: str = "unknown"
+    make: str = UNKNOWN_CAMERA
     file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
     colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
     shading_not_applied: tuple[str, ...] = ()  # DNG lens-shading opcodes left out (hdrcam.io.dng_opcodes)
@@ -116,6 +123,17 @@ def read_raw(path: str | Path) -> RawFrame:
     return RawFrame(metadata, bayer)
 
 
+def sensor_fingerprint(meta: RawMetadata) -> tuple[tuple[str, str], ...]:
+    """What tells two camera bodies apart where a file names neither make nor model (CR3, RAF, CRW, MRW, ... are
+    not TIFF, and rawpy does not pass LibRaw's make and model on): (property, value) pairs every exposure of one
+    body shares, LibRaw's raw size and white level (not the black level: some bodies measure it from each
+    frame's masked border); none for a file that names its camera."""
+    if meta.camera_model != UNKNOWN_CAMERA:
+        return ()
+    width, height = meta.raw_size_px
+    return ("raw sensor size", f"{width} x {height} px"), ("white level", f"{meta.white_level_dn:g} DN")
+
+
 def bit_depth_class(white_level_dn: float) -> int:
     """The bit depth a white level belongs to (4095 -> 12, 15000 and 16383 -> 14, 65535 -> 16): frames of one
     body recorded at 12 and 14 bits cannot be merged on one scale."""
@@ -147,8 +165,12 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
             raw.open_file(str(path))  # the header only: sizes are checked before LibRaw allocates the pixels
             check_image_size(str(path), int(raw.sizes.raw_height), int(raw.sizes.raw_width), RAW_BYTES_PER_PIXEL,
                              "use a machine with more memory")
-            raw.unpack()
-            _check_bayer(path, raw)
+            try:
+                raw.unpack()
+            except rawpy.LibRawIOError as error:  # a decoder that reached the end of the file
+                raise InputError(f"{path}: truncated or damaged: LibRaw ran out of data decoding it "
+                                 f"({_libraw_reason(error)}); copy it from the card again") from None
+            _check_bayer(path, raw, tiff)
             tile = raw.raw_pattern[:2, :2].ravel()
             black = [float(b) for b in raw.black_level_per_channel]
             other = raw.other
@@ -158,6 +180,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
             matrix, matrix_source = _colour_matrix(np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64), tiff)
             metadata = RawMetadata(
                 path=path, width_px=int(raw.sizes.width), height_px=int(raw.sizes.height),
+                raw_size_px=(int(raw.sizes.raw_width), int(raw.sizes.raw_height)),
                 cfa_pattern="".join(_CFA_LETTERS[i] for i in tile),
                 black_level_dn=tuple(black[i] for i in tile), white_level_dn=float(raw.white_level),
                 xyz_to_camera=matrix,
@@ -167,8 +190,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
                 timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) else None,
-                camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or "unknown",
-                make=tiff.make or "unknown", file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
+                camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or UNKNOWN_CAMERA,
+                make=tiff.make or UNKNOWN_CAMERA, file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
                 colour_matrix_source=matrix_source, shading_not_applied=tiff.shading_opcodes)
     except InputError:
         raise
@@ -179,7 +202,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     finally:
         if bayer is None:
             raw.close()
-    filled_rows = repeated_tail_rows(bayer) if bayer is not None and not tiff.data_end_bytes else 0
+    filled_rows = repeated_tail_rows(bayer) if bayer is not None and not tiff.data_end_checked else 0
     if filled_rows >= FILLED_ROWS:
         raise InputError(f"{path}: truncated or damaged: its last {filled_rows} rows repeat one row (LibRaw fills "
                          "what a file lacks that way); copy it from the card again")
@@ -203,10 +226,13 @@ def _libraw_reason(error: Exception) -> str:
     return text[2:-1] if text[:2] in ("b'", 'b"') and text[-1:] in ("'", '"') else text
 
 
-def _check_bayer(path: Path, raw) -> None:
-    """InputError unless the sensor is a 2 x 2 Bayer mosaic of R, G, B."""
+def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
+    """InputError unless the sensor is a 2 x 2 Bayer mosaic of R, G, B on a square grid."""
     import rawpy
 
+    if tiff.cfa_layout not in (None, 1):
+        raise InputError(f"{path}: staggered CFA layout (CFALayout {tiff.cfa_layout}: rows or columns offset by half "
+                         "a pixel) is not supported; hdrcam merges 2 x 2 Bayer data on a square grid only")
     if raw.raw_type != rawpy.RawType.Flat:
         raise InputError(f"{path}: not a mosaic RAW (LibRaw: {raw.raw_type.name}, e.g. a Foveon or linear DNG); "
                          "hdrcam merges 2 x 2 Bayer data only")
@@ -217,6 +243,12 @@ def _check_bayer(path: Path, raw) -> None:
         raise InputError(f"{path}: X-Trans sensor (6 x 6 colour filter); hdrcam merges 2 x 2 Bayer data only")
     if raw.num_colors != 3 or pattern.shape != (2, 2) or sorted({_CFA_LETTERS[i] for i in pattern.ravel()}) != \
             ["B", "G", "R"]:
+        if tiff.cfa_repeat_dim not in (None, (2, 2)):  # what the DNG says: LibRaw cannot hold a Quad-Bayer CFA
+            rows, columns = tiff.cfa_repeat_dim
+            codes = np.resize(tiff.cfa_codes, (rows, columns))  # each 2 x 2 block of a Quad-Bayer CFA is one colour
+            quad = (rows, columns) == (4, 4) and np.array_equal(codes, codes[::2, ::2].repeat(2, 0).repeat(2, 1))
+            raise InputError(f"{path}: {rows} x {columns} {'Quad-Bayer ' if quad else ''}CFA is not supported: "
+                             "hdrcam merges 2 x 2 Bayer data only")
         raise InputError(f"{path}: colour filter {raw.color_desc.decode(errors='replace')} of "
                          f"{pattern.shape[0]} x {pattern.shape[1]} is not a 2 x 2 RGB Bayer mosaic; hdrcam merges "
                          "those only")
@@ -288,7 +320,8 @@ class _TiffFacts:
     """What the TIFF structure of a RAW file says (nothing for formats that are not TIFF: CR3, RAF, CRW...)."""
 
     file_bytes: int
-    data_end_bytes: int = 0  # the furthest byte any image strip or tile of any IFD claims
+    data_end_bytes: int = 0  # the furthest byte any image strip or tile of any IFD needs
+    data_end_checked: bool = False  # every strip's and tile's end known: data_end_bytes alone shows a truncation
     make: str | None = None
     model: str | None = None
     iso: float | None = None
@@ -296,6 +329,9 @@ class _TiffFacts:
     colour_matrices: list = dataclasses.field(default_factory=list)  # [(tag name, 3 x 3)], preferred first
     as_shot_white_xy: tuple[float, float] | None = None  # DNG AsShotWhiteXY, when the file has it
     shading_opcodes: tuple[str, ...] = ()  # DNG lens-shading opcodes of the raw image (hdrcam.io.dng_opcodes)
+    cfa_repeat_dim: tuple[int, int] | None = None  # a DNG raw image's CFARepeatPatternDim (rows, columns)
+    cfa_codes: tuple[int, ...] = ()  # its CFAPattern, row-major (0 R, 1 G, 2 B, ...)
+    cfa_layout: int | None = None  # its CFALayout (1: a square grid; 2 to 9: staggered)
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -323,11 +359,18 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             pages = list(_all_pages(tiff))
-            facts.data_end_bytes = max((_data_end(page) for page in pages), default=0)
+            ends = [_data_end(page) for page in pages]
+            facts.data_end_bytes = max((end for end, _ in ends), default=0)
+            facts.data_end_checked = facts.data_end_bytes > 0 and all(trusted for _, trusted in ends)
             if facts.file_format == "DNG":
                 full_resolution = [page for page in pages if _subfile_type(page) == 0]  # not previews
                 facts.shading_opcodes = tuple(dict.fromkeys(name for page in full_resolution
                                                             for name in shading_opcodes(page.tags)))
+                mosaic = next((page.tags for page in full_resolution if page.photometric == 32803), {})  # CFA
+                if 33421 in mosaic and 33422 in mosaic:
+                    facts.cfa_repeat_dim = tuple(int(n) for n in mosaic[33421].value)
+                    facts.cfa_codes = tuple(mosaic[33422].value)
+                facts.cfa_layout = int(mosaic[50711].value) if 50711 in mosaic else None
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:
@@ -389,9 +432,36 @@ def _subfile_type(page) -> int:
     return int(page.tags[254].value) if 254 in page.tags else 0
 
 
-def _data_end(page) -> int:
+def _data_end(page) -> tuple[int, bool]:
+    """(the furthest byte the page's strips or tiles need, whether every byte count was believed).
+
+    An uncompressed strip needs its rows' bytes even where its count says more; a compressed one whose count is
+    at least its uncompressed size is not believed (older Hasselblad 3FRs declare the uncompressed size for
+    compressed data, past the end of the file), only its start counts."""
     offsets, counts = getattr(page, "dataoffsets", ()), getattr(page, "databytecounts", ())
-    return max((int(o) + int(c) for o, c in zip(offsets, counts) if c), default=0)
+    ends, believed = [0], True
+    for offset, count, size in zip(offsets, counts, _uncompressed_bytes(page)):
+        if not count:
+            continue
+        if page.compression == 1:
+            count = min(count, size)
+        elif count >= size:
+            count, believed = 0, False
+        ends.append(int(offset) + int(count))
+    return max(ends), believed
+
+
+def _uncompressed_bytes(page) -> list[float]:
+    """Each strip's or tile's size uncompressed, in bytes (inf where the IFD does not give the image's size, as
+    a CR2's raw IFD): a tile is whole even past the image's edge, a strip holds RowsPerStrip rows and the last
+    one of a plane the rows left."""
+    chunks, rows = len(page.dataoffsets), page.rowsperstrip
+    if page.is_tiled:
+        return [math.prod(page.chunks) * page.bitspersample // 8] * chunks
+    if not rows:
+        return [math.inf] * chunks
+    row_bytes, strips = math.prod(page.chunks[1:]) * page.bitspersample // 8, math.ceil(page.imagelength / rows)
+    return [min(rows, page.imagelength - index % strips * rows) * row_bytes for index in range(chunks)]
 
 
 def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str

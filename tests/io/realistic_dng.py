@@ -40,10 +40,11 @@ def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator,
 def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(512, 512, 512, 512),
               white_dn: int = 16383, exposure_s: float = 0.01, iso: int = 100, colour_matrix=XYZ_TO_CAMERA,
               make: str = "Acme", model: str = "Testbody 1", datetime: str = "2026:11:24 12:00:00",
-              truncate_to: int | None = None) -> Path:
-    """An uncompressed DNG; ``cfa`` of 4 letters (2 x 2) or 36 (6 x 6 X-Trans); ``colour_matrix`` None to leave
-    ColorMatrix1 out; ``truncate_to`` cuts the file to that many bytes (a copy that broke off)."""
-    side = 2 if len(cfa) == 4 else 6
+              truncate_to: int | None = None, extra_tags=()) -> Path:
+    """An uncompressed DNG; ``cfa`` of 4 letters (2 x 2), 16 (4 x 4) or 36 (6 x 6 X-Trans); ``colour_matrix`` None
+    to leave ColorMatrix1 out; ``truncate_to`` cuts the file to that many bytes (a copy that broke off);
+    ``extra_tags`` more tags, as tifffile's extratags."""
+    side = round(len(cfa) ** 0.5)
     tags = [
         (33421, "H", 2, (side, side), True),
         (33422, "B", len(cfa), tuple(_CFA_CODES[c] for c in cfa), True),
@@ -66,7 +67,7 @@ def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(
             flat.extend((round(value * 10000), 10000))
         tags.append((50721, "2i", 9, tuple(flat), True))
     tifffile.imwrite(path, np.ascontiguousarray(bayer_dn), photometric=tifffile.PHOTOMETRIC.CFA, compression=None,
-                     subfiletype=0, datetime=datetime, extratags=tags, metadata=None)
+                     subfiletype=0, datetime=datetime, extratags=tags + list(extra_tags), metadata=None)
     if truncate_to is not None:
         content = path.read_bytes()
         path.write_bytes(content[:truncate_to])
