@@ -1,4 +1,5 @@
-"""Pictures for people: log-scaled PSFs and colour-mapped height maps as 8-bit RGB arrays."""
+"""Pictures for people: log-scaled PSFs and colour-mapped height maps as 8-bit RGB arrays, tone-mapped HDR
+previews turned upright."""
 
 from __future__ import annotations
 
@@ -100,6 +101,16 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
     with ThreadPoolExecutor(worker_threads()) as pool:
         list(pool.map(map_strip, strips(hdr_rgb.shape[0], STRIP_ROWS)))
     return preview
+
+
+def display_oriented(image: np.ndarray, orientation: int) -> np.ndarray:
+    """``image`` (H x W or H x W x C, as the sensor recorded it) turned upright as its EXIF Orientation code asks:
+    1 unchanged, 2 mirrored left to right, 3 turned 180 degrees, 4 mirrored top to bottom, 5 transposed, 6 turned
+    90 degrees clockwise, 7 transposed and turned 180 degrees, 8 turned 90 degrees anticlockwise (5 to 8 swap
+    width and height). A view, no copy."""
+    if orientation >= 5:
+        image = image.swapaxes(0, 1)
+    return image[::-1 if orientation in (3, 4, 7, 8) else 1, ::-1 if orientation in (2, 3, 6, 7) else 1]
 
 
 def confidence_preview(confidence: np.ndarray) -> np.ndarray:

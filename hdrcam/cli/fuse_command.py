@@ -1,8 +1,9 @@
 """``hdrcam fuse BRACKET --out X.exr``: merge a RAW bracket into linear HDR (EXR) with a preview PNG.
 
 The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, about a quarter
-smaller for noisy data and several seconds slower at 24 MP); the preview is tone-mapped from the image
-reduced to at most PREVIEW_SIDE_PX on its longer side."""
+smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
+attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
+most PREVIEW_SIDE_PX on its longer side and turned upright."""
 
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.hdr.fuse import fuse
     from hdrcam.io.exr import write_exr_channels
     from hdrcam.io.png import write_png
-    from hdrcam.preview import reduced_for_preview, tonemap_rgb
+    from hdrcam.preview import display_oriented, reduced_for_preview, tonemap_rgb
 
     profile = load_profile(arguments.profile)
     out: Path = arguments.out
@@ -56,7 +57,8 @@ def run(arguments: argparse.Namespace) -> int:
         channels["variance"] = image.variance
     write_exr_channels(out, channels, attributes=image.attributes(), half=arguments.half,
                        overwrite=arguments.overwrite, compression=arguments.compression)
-    write_png(preview, tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), overwrite=arguments.overwrite)
+    upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
+    write_png(preview, upright, overwrite=arguments.overwrite)
     seconds = time.perf_counter() - started
     merge = image.merge
     print(f"{len(image.frames)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "

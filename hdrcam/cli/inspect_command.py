@@ -1,6 +1,7 @@
-"""``hdrcam inspect FILE...``: one JSON line per RAW file - make, model, format, size, CFA, exposure, ISO,
-black level, metadata white level, the clip level measured from the data, the clipped fraction and where
-the colour matrix comes from. Files that cannot be read get one line each on stderr (exit status 1)."""
+"""``hdrcam inspect FILE...``: one JSON line per RAW file - make, model, format, size (the sensor's), orientation
+(the EXIF code that displays it upright), CFA, exposure, ISO, black level, metadata white level, the clip level
+measured from the data, the clipped fraction and where the colour matrix comes from. Files that cannot be read
+get one line each on stderr (exit status 1)."""
 
 from __future__ import annotations
 

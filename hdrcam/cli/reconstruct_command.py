@@ -1,5 +1,8 @@
 """``hdrcam reconstruct``: captured LDR frames -> linear HDR EXR (+ unreliable-pixel mask and confidence map)
-and PNG previews. The pipeline is :func:`hdrcam.api.reconstruct`; this module reads and writes files."""
+and PNG previews. The pipeline is :func:`hdrcam.api.reconstruct`; this module reads and writes files.
+
+A RAW frame is reconstructed in the sensor's orientation (the PSF's): the EXR stays so, with the file's EXIF
+Orientation code as its ``orientation`` attribute, and the PNG previews are turned upright."""
 
 from __future__ import annotations
 
@@ -62,10 +65,10 @@ def run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from hdrcam.io.exr import write_exr
-    from hdrcam.io.ldr_frame import read_ldr_frame
+    from hdrcam.io.ldr_frame import read_ldr_frame_and_orientation
     from hdrcam.io.png import write_png
     from hdrcam.optics.psf_file import load_psf
-    from hdrcam.preview import confidence_preview, tonemap_rgb
+    from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
     from hdrcam.api import network_windows, reconstruct
@@ -93,12 +96,13 @@ def run(arguments: argparse.Namespace) -> int:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
-    frames = [read_ldr_frame(source, arguments.demosaic) for source in arguments.inputs]  # every input checked before any work
+    frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)
+                                 for source in arguments.inputs])  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check) for plan in plans),
                     desc="reconstruct", unit="window")
-    for source, frame, plan in zip(arguments.inputs, frames, plans):
+    for source, frame, orientation, plan in zip(arguments.inputs, frames, orientations, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
@@ -112,7 +116,7 @@ def run(arguments: argparse.Namespace) -> int:
                   f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
         exr_path, png_path, confidence_path = output_paths(arguments.out, source)
         attributes = {"source": str(source), "checkpoint": str(model.source), "units": "relative radiance, 1.0 = "
-                      "sensor white at the capture's exposure", "colour": "camera RGB",
+                      "sensor white at the capture's exposure", "colour": "camera RGB", "orientation": orientation,
                       "windows_run": result.tiles.windows_run, "windows": result.tiles.windows,
                       "clipped_streak_pixels": streaks.clipped_streak_pixels,
                       "fallback_fraction": round(result.fallback_fraction, 4)}
@@ -120,8 +124,9 @@ def run(arguments: argparse.Namespace) -> int:
                                  result.confidence[..., None]], axis=-1)
         write_exr(exr_path, pixels, channel_names=("R", "G", "B", "unreliable", "confidence"),
                   attributes=attributes, overwrite=arguments.overwrite)
-        write_png(png_path, tonemap_rgb(result.hdr), overwrite=arguments.overwrite)
-        write_png(confidence_path, confidence_preview(result.confidence), overwrite=arguments.overwrite)
+        write_png(png_path, display_oriented(tonemap_rgb(result.hdr), orientation), overwrite=arguments.overwrite)
+        write_png(confidence_path, display_oriented(confidence_preview(result.confidence), orientation),
+                  overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
                           "confidence": str(confidence_path), "size": list(frame.shape[:2]),
                           "seconds": round(time.perf_counter() - started, 2), "work": result.tiles.summary(),

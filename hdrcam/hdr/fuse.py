@@ -2,7 +2,9 @@
 
 Output channels: R, G, B in linear sRGB primaries (or camera RGB with ``camera_rgb``), relative radiance
 (full wells per second at ISO 100); ``clipped`` = 1 where some CFA sample feeding the pixel was clipped in
-every frame (its value is a lower bound); optional per-channel variance.
+every frame (its value is a lower bound); optional per-channel variance. The image stays in the sensor's
+orientation, as the frames' Bayer data; ``orientation`` (the first frame's EXIF Orientation code) says how to
+display it.
 """
 
 from __future__ import annotations
@@ -38,8 +40,16 @@ class FusedImage:
     frames: list[RawFrame]
     colour: str  # "linear sRGB (D65)" or "camera RGB"
 
+    @property
+    def orientation(self) -> int:
+        """EXIF Orientation code (1 to 8) that displays the image upright (6: turn 90 degrees clockwise); the
+        pixels stay in the sensor's orientation. The first frame's."""
+        return self.frames[0].metadata.orientation
+
     def attributes(self) -> dict:
-        return {"units": UNITS, "colour": self.colour,
+        """The EXR's attributes; ``orientation`` is the EXIF code of the pixels, which are in the sensor's
+        orientation (not turned)."""
+        return {"units": UNITS, "colour": self.colour, "orientation": self.orientation,
                 "frames": ", ".join(f.metadata.path.name for f in self.frames),
                 "labelled_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.labelled_exposures_s),
                 "estimated_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.exposures_s),

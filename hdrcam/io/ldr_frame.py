@@ -5,6 +5,8 @@
   below the metadata white level maps to 1, so those pixels count as clipped), demosaiced (hdrcam.io.demosaic;
   OpenCV's bilinear by default, on the integers when the levels are whole numbers), divided by (clip - black).
   No white balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
+  The frame stays in the sensor's orientation, as the PSF; ``read_ldr_frame_and_orientation`` also gives the
+  file's EXIF Orientation code, for previews.
 - EXR: linear RGB taken as is (1.0 = white).
 - 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
@@ -20,7 +22,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import read_exr
-from hdrcam.io.raw import read_raw, warn_shading_not_applied
+from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
@@ -31,10 +33,16 @@ NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of wh
 def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
     """H x W x 3 float32 camera RGB relative to white (0 .. 1) of a RAW, EXR or 16-bit TIFF/PNG frame;
     ``demosaic_method`` (RAW only): one of ``hdrcam.io.demosaic.METHODS``."""
+    return read_ldr_frame_and_orientation(path, demosaic_method)[0]
+
+
+def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_METHOD) -> tuple[np.ndarray, int]:
+    """``read_ldr_frame``'s frame and the EXIF Orientation code (1 to 8) that displays it upright: a RAW file's
+    (its frame stays in the sensor's orientation), 1 for EXR, TIFF and PNG (taken as stored)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} does not exist")
-    suffix = path.suffix.lower()
+    suffix, orientation = path.suffix.lower(), 1
     if suffix == ".exr":
         rgb = read_exr(path).rgb()
     elif suffix in IMAGE_SUFFIXES:
@@ -46,7 +54,8 @@ def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndar
                              "an EXR or a RAW file")
         rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
     else:
-        rgb = raw_relative_rgb(path, demosaic_method)
+        raw = read_raw(path)
+        rgb, orientation = raw_relative_rgb(raw, demosaic_method), raw.metadata.orientation
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     if float(rgb.min()) < -NEGATIVE_LDR_TOLERANCE:
@@ -55,12 +64,11 @@ def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndar
     if float(rgb.max()) > LDR_TOLERANCE:
         raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
                          "capture (give the camera frame, not an HDR image)")
-    return np.clip(rgb, 0.0, 1.0).astype(np.float32)
+    return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
 
 
-def raw_relative_rgb(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
+def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
     """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced."""
-    frame = read_raw(path)
     warn_shading_not_applied([frame])
     height, width = frame.bayer_dn.shape
     black_tile = frame.metadata.black_level_tile()

@@ -6,9 +6,13 @@ subtraction, no demosaicing - and the clip level measured from it (``hdrcam.io.r
 does not report ISO for DNGs, nor the camera's make and model; they are read from the TIFF tags (ARW, NEF,
 CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest can override ISO.
 
+The pixels stay in the sensor's orientation (the PSF is measured and the CFA is laid out there);
+``RawMetadata.orientation`` says how to display them (the EXIF Orientation code, from LibRaw's ``sizes.flip``).
+
 Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
-not a 2 x 2 Bayer mosaic (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's Quad-Bayer or
-staggered CFA), and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
+not a 2 x 2 Bayer mosaic on a square grid (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's
+Quad-Bayer, Nona-Bayer or staggered CFA, a visible area LibRaw places outside its raw data),
+and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
 repeating the last row they decoded and report no error (an A7R III ARW cut to half decodes with its last 1787
 rows identical), so a TIFF-based file (ARW, NEF, CR2, DNG, ...) is refused when its strips or tiles run past
 the end of the file, and a file of another format (CR3, RAF, ...) when its last FILLED_ROWS or more rows repeat
@@ -55,6 +59,8 @@ UNKNOWN_CAMERA = "unknown"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
 FILLED_ROWS = 8
+_EXIF_ORIENTATION = {0: 1, 1: 2, 2: 4, 3: 3, 4: 5, 5: 8, 6: 6, 7: 7}  # LibRaw's sizes.flip -> EXIF (_exif_orientation)
+_BLOCK_BAYER_NAMES = {2: "Quad-Bayer", 3: "Nona-Bayer"}  # each colour of a 2 x 2 Bayer tile on n x n pixels
 
 
 class NotRawError(InputError):
@@ -83,6 +89,8 @@ class RawMetadata:
     file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
     colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
     shading_not_applied: tuple[str, ...] = ()  # DNG lens-shading opcodes left out (hdrcam.io.dng_opcodes)
+    orientation: int = 1  # EXIF Orientation code (1 to 8) that displays the frame upright (6: turn 90 degrees
+    # clockwise); the pixels and every size above stay in the sensor's orientation
 
     def black_level_tile(self) -> np.ndarray:
         """The 2 x 2 tile of black levels (float32), row-major like ``cfa_pattern``."""
@@ -192,7 +200,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) else None,
                 camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or UNKNOWN_CAMERA,
                 make=tiff.make or UNKNOWN_CAMERA, file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
-                colour_matrix_source=matrix_source, shading_not_applied=tiff.shading_opcodes)
+                colour_matrix_source=matrix_source, shading_not_applied=tiff.shading_opcodes,
+                orientation=_exif_orientation(int(raw.sizes.flip)))
     except InputError:
         raise
     except rawpy.LibRawFileUnsupportedError as error:
@@ -226,32 +235,65 @@ def _libraw_reason(error: Exception) -> str:
     return text[2:-1] if text[:2] in ("b'", 'b"') and text[-1:] in ("'", '"') else text
 
 
+def _exif_orientation(libraw_flip: int) -> int:
+    """The EXIF Orientation code (1 to 8) of LibRaw's ``sizes.flip``: 0 -> 1 (upright), 3 -> 3 (turn 180 degrees to
+    display), 5 -> 8 (turn 90 degrees anticlockwise), 6 -> 6 (turn 90 degrees clockwise), and the mirrored ones
+    1 -> 2, 2 -> 4, 4 -> 5, 7 -> 7; 1 for anything else.
+
+    flip is dcraw's bit field (4 transpose, 2 mirror top to bottom, 1 mirror left to right). LibRaw reads the
+    EXIF tag as ``"50132467"[orientation & 7]`` (src/metadata/tiff.cpp, tag 0x0112) and turns a flip given in
+    degrees into 6 (90), 3 (180) or 5 (270) when it opens a file (src/metadata/identify.cpp); this is the inverse
+    of that string, checked with DNGs of each Orientation 1 to 8 against LibRaw's own rendering
+    (tests/io/test_orientation.py)."""
+    return _EXIF_ORIENTATION.get(libraw_flip, 1)
+
+
 def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
-    """InputError unless the sensor is a 2 x 2 Bayer mosaic of R, G, B on a square grid."""
+    """InputError unless the sensor is a 2 x 2 Bayer mosaic of R, G, B on a square grid. A DNG's own CFA tags name
+    its pattern before LibRaw's does (LibRaw takes any 6 x 6 pattern for X-Trans and cannot hold a 4 x 4 one)."""
     import rawpy
 
     if tiff.cfa_layout not in (None, 1):
         raise InputError(f"{path}: staggered CFA layout (CFALayout {tiff.cfa_layout}: rows or columns offset by half "
                          "a pixel) is not supported; hdrcam merges 2 x 2 Bayer data on a square grid only")
+    sizes = raw.sizes
+    if sizes.top_margin + sizes.height > sizes.raw_height or sizes.left_margin + sizes.width > sizes.raw_width:
+        raise InputError(f"{path}: LibRaw's visible area ({sizes.width} x {sizes.height} px from column "
+                         f"{sizes.left_margin}, row {sizes.top_margin}) does not fit in its raw data "
+                         f"({sizes.raw_width} x {sizes.raw_height} px): a staggered or rotated sensor layout (e.g. "
+                         "Fuji SuperCCD) is not supported; hdrcam merges 2 x 2 Bayer data on a square grid only")
     if raw.raw_type != rawpy.RawType.Flat:
         raise InputError(f"{path}: not a mosaic RAW (LibRaw: {raw.raw_type.name}, e.g. a Foveon or linear DNG); "
                          "hdrcam merges 2 x 2 Bayer data only")
     pattern = np.asarray(raw.raw_pattern)
     if raw.num_colors == 1 or pattern.size == 1:
         raise InputError(f"{path}: monochrome sensor (no colour filter array); hdrcam merges 2 x 2 Bayer data only")
+    if tiff.cfa_repeat_dim not in (None, (2, 2)):
+        rows, columns = tiff.cfa_repeat_dim
+        name = _cfa_name(np.resize(tiff.cfa_codes, (rows, columns)))
+        raise InputError(f"{path}: {rows} x {columns} {name + ' ' if name else ''}CFA is not supported: "
+                         "hdrcam merges 2 x 2 Bayer data only")
     if pattern.shape == (6, 6):
         raise InputError(f"{path}: X-Trans sensor (6 x 6 colour filter); hdrcam merges 2 x 2 Bayer data only")
     if raw.num_colors != 3 or pattern.shape != (2, 2) or sorted({_CFA_LETTERS[i] for i in pattern.ravel()}) != \
             ["B", "G", "R"]:
-        if tiff.cfa_repeat_dim not in (None, (2, 2)):  # what the DNG says: LibRaw cannot hold a Quad-Bayer CFA
-            rows, columns = tiff.cfa_repeat_dim
-            codes = np.resize(tiff.cfa_codes, (rows, columns))  # each 2 x 2 block of a Quad-Bayer CFA is one colour
-            quad = (rows, columns) == (4, 4) and np.array_equal(codes, codes[::2, ::2].repeat(2, 0).repeat(2, 1))
-            raise InputError(f"{path}: {rows} x {columns} {'Quad-Bayer ' if quad else ''}CFA is not supported: "
-                             "hdrcam merges 2 x 2 Bayer data only")
         raise InputError(f"{path}: colour filter {raw.color_desc.decode(errors='replace')} of "
                          f"{pattern.shape[0]} x {pattern.shape[1]} is not a 2 x 2 RGB Bayer mosaic; hdrcam merges "
                          "those only")
+
+
+def _cfa_name(codes: np.ndarray) -> str:
+    """What a DNG's rows x columns CFA pattern (colour codes, 0 R, 1 G, 2 B) is called: "Quad-Bayer" or
+    "Nona-Bayer" when each colour of a 2 x 2 tile covers 2 x 2 or 3 x 3 pixels, "X-Trans" for a 6 x 6 pattern with
+    red, green and blue in every row and column, else ""."""
+    rows, columns = codes.shape
+    block = rows // 2
+    if rows == columns and block in _BLOCK_BAYER_NAMES and \
+            np.array_equal(codes, codes[::block, ::block].repeat(block, 0).repeat(block, 1)):
+        return _BLOCK_BAYER_NAMES[block]
+    if codes.shape == (6, 6) and all({0, 1, 2} <= set(line.tolist()) for line in (*codes, *codes.T)):
+        return "X-Trans"
+    return ""
 
 
 def _colour_matrix(libraw_matrix: np.ndarray, tiff: "_TiffFacts") -> tuple[np.ndarray, str]:

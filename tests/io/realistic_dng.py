@@ -40,10 +40,11 @@ def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator,
 def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(512, 512, 512, 512),
               white_dn: int = 16383, exposure_s: float = 0.01, iso: int = 100, colour_matrix=XYZ_TO_CAMERA,
               make: str = "Acme", model: str = "Testbody 1", datetime: str = "2026:11:24 12:00:00",
-              truncate_to: int | None = None, extra_tags=()) -> Path:
+              truncate_to: int | None = None, orientation: int | None = None, extra_tags=()) -> Path:
     """An uncompressed DNG; ``cfa`` of 4 letters (2 x 2), 16 (4 x 4) or 36 (6 x 6 X-Trans); ``colour_matrix`` None
     to leave ColorMatrix1 out; ``truncate_to`` cuts the file to that many bytes (a copy that broke off);
-    ``extra_tags`` more tags, as tifffile's extratags."""
+    ``orientation`` the EXIF Orientation code (6: a portrait shot, turn 90 degrees clockwise to display), None to
+    leave the tag out; ``extra_tags`` more tags, as tifffile's extratags."""
     side = round(len(cfa) ** 0.5)
     tags = [
         (33421, "H", 2, (side, side), True),
@@ -61,6 +62,8 @@ def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(
         (271, "s", 0, make, True),
         (272, "s", 0, model, True),
     ]
+    if orientation is not None:
+        tags.append((274, "H", 1, (orientation,), True))
     if colour_matrix is not None:
         flat = []
         for value in np.asarray(colour_matrix, float).ravel():
