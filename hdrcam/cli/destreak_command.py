@@ -40,9 +40,9 @@ def register(commands) -> None:
 
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.exr import write_exr
-    from hdrcam.io.ldr_frame import read_ldr_frame
+    from hdrcam.io.ldr_frame import read_ldr_frame_and_orientation
     from hdrcam.io.png import write_png
-    from hdrcam.preview import tonemap_rgb
+    from hdrcam.preview import display_oriented, tonemap_rgb
     from hdrcam.recon.destreak import destreak_frame
     from hdrcam.recon.windshield_fit import subtract_windshield_streaks
     from hdrcam.train.checkpoint import load_model, read_checkpoint
@@ -54,8 +54,8 @@ def run(arguments: argparse.Namespace) -> int:
     check_outputs([path for pair in outputs for path in pair], overwrite=arguments.overwrite,
                   inputs=arguments.inputs)
     model = load_model(arguments.checkpoint) if network else None
-    frames = [read_ldr_frame(source) for source in arguments.inputs]
-    for source, frame, (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
+    frames = [read_ldr_frame_and_orientation(source) for source in arguments.inputs]  # RAW: sensor orientation
+    for source, (frame, orientation), (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
         if network:
             clean, report = destreak_frame(model.network, frame, psf_radius_px=model.psf.shape[-1] // 2,
@@ -66,9 +66,9 @@ def run(arguments: argparse.Namespace) -> int:
             clean, fit = subtract_windshield_streaks(frame)
             method = {"method": "streak fit", "angle_deg": "none" if fit.angle_deg is None else f"{fit.angle_deg:.2f}"}
             work = {"work": fit.summary()}
-        write_exr(exr_path, clean, channel_names=("R", "G", "B"), attributes={"source": str(source), **method},
-                  overwrite=arguments.overwrite)
-        write_png(png_path, tonemap_rgb(clean), overwrite=arguments.overwrite)
+        write_exr(exr_path, clean, channel_names=("R", "G", "B"),
+                  attributes={"source": str(source), "orientation": orientation, **method}, overwrite=arguments.overwrite)
+        write_png(png_path, display_oriented(tonemap_rgb(clean), orientation), overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path), **work,
                           "seconds": round(time.perf_counter() - started, 2)}))
     return 0

@@ -19,7 +19,8 @@ the end of the file, and a file of another format (CR3, RAF, ...) when its last 
 one row that is not flat (a sensor's noise never repeats a row bit for bit). An uncompressed strip needs its
 rows' bytes, whatever its byte count says beyond them; a compressed strip whose count is at least its
 uncompressed size is not believed (older Hasselblad 3FRs declare the uncompressed size, past the end of the
-file: exiftool/exiftool#476), and such a file is checked by its rows as a CR3 is. LibRaw's other decoders stop
+file: exiftool/exiftool#476), and such a file is checked by its rows as a CR3 is (not verified on a real
+3FR: LibRaw's Hasselblad decoder may fill what is missing without repeating rows). LibRaw's other decoders stop
 at the end of the file with an "Input/output error", refused as a truncation too.
 
 Colour (XYZ -> camera, D65): a DNG's own ColorMatrix tags first (the one calibrated for D65, else
@@ -176,7 +177,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
             try:
                 raw.unpack()
             except rawpy.LibRawIOError as error:  # a decoder that reached the end of the file
-                raise InputError(f"{path}: truncated or damaged: LibRaw ran out of data decoding it "
+                raise InputError(f"{path}: truncated or damaged: LibRaw reports an I/O error decoding it "
                                  f"({_libraw_reason(error)}); copy it from the card again") from None
             _check_bayer(path, raw, tiff)
             tile = raw.raw_pattern[:2, :2].ravel()
@@ -256,15 +257,15 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
     if tiff.cfa_layout not in (None, 1):
         raise InputError(f"{path}: staggered CFA layout (CFALayout {tiff.cfa_layout}: rows or columns offset by half "
                          "a pixel) is not supported; hdrcam merges 2 x 2 Bayer data on a square grid only")
-    sizes = raw.sizes
-    if sizes.top_margin + sizes.height > sizes.raw_height or sizes.left_margin + sizes.width > sizes.raw_width:
-        raise InputError(f"{path}: LibRaw's visible area ({sizes.width} x {sizes.height} px from column "
-                         f"{sizes.left_margin}, row {sizes.top_margin}) does not fit in its raw data "
-                         f"({sizes.raw_width} x {sizes.raw_height} px): a staggered or rotated sensor layout (e.g. "
-                         "Fuji SuperCCD) is not supported; hdrcam merges 2 x 2 Bayer data on a square grid only")
     if raw.raw_type != rawpy.RawType.Flat:
         raise InputError(f"{path}: not a mosaic RAW (LibRaw: {raw.raw_type.name}, e.g. a Foveon or linear DNG); "
                          "hdrcam merges 2 x 2 Bayer data only")
+    sizes = raw.sizes
+    if raw.raw_image_visible.shape != (sizes.height, sizes.width):
+        raise InputError(f"{path}: LibRaw's visible area ({sizes.width} x {sizes.height} px from column "
+                         f"{sizes.left_margin}, row {sizes.top_margin}) does not fit in its raw data "
+                         f"({sizes.raw_width} x {sizes.raw_height} px), e.g. a staggered sensor layout; hdrcam "
+                         "merges 2 x 2 Bayer data on a square grid only")
     pattern = np.asarray(raw.raw_pattern)
     if raw.num_colors == 1 or pattern.size == 1:
         raise InputError(f"{path}: monochrome sensor (no colour filter array); hdrcam merges 2 x 2 Bayer data only")
@@ -477,33 +478,38 @@ def _subfile_type(page) -> int:
 def _data_end(page) -> tuple[int, bool]:
     """(the furthest byte the page's strips or tiles need, whether every byte count was believed).
 
-    An uncompressed strip needs its rows' bytes even where its count says more; a compressed one whose count is
-    at least its uncompressed size is not believed (older Hasselblad 3FRs declare the uncompressed size for
-    compressed data, past the end of the file), only its start counts."""
+    An uncompressed strip needs its rows' bytes (at most two bytes a sample: 12- and 14-bit data may be stored
+    unpacked) even where its count says more; a compressed one whose count is at least its uncompressed size is
+    not believed (older Hasselblad 3FRs declare the uncompressed size for compressed data, past the end of the
+    file), only its start counts. Counts are believed where the page does not give its size."""
     offsets, counts = getattr(page, "dataoffsets", ()), getattr(page, "databytecounts", ())
     ends, believed = [0], True
-    for offset, count, size in zip(offsets, counts, _uncompressed_bytes(page)):
+    for offset, count, (packed, unpacked) in zip(offsets, counts, _uncompressed_bytes(page)):
         if not count:
             continue
         if page.compression == 1:
-            count = min(count, size)
-        elif count >= size:
+            count = min(count, unpacked)
+        elif count >= packed:
             count, believed = 0, False
         ends.append(int(offset) + int(count))
     return max(ends), believed
 
 
-def _uncompressed_bytes(page) -> list[float]:
-    """Each strip's or tile's size uncompressed, in bytes (inf where the IFD does not give the image's size, as
-    a CR2's raw IFD): a tile is whole even past the image's edge, a strip holds RowsPerStrip rows and the last
-    one of a plane the rows left."""
-    chunks, rows = len(page.dataoffsets), page.rowsperstrip
+def _uncompressed_bytes(page) -> list[tuple[float, float]]:
+    """Each strip's or tile's size uncompressed, in bytes, packed (BitsPerSample bits a sample) and unpacked (whole
+    bytes a sample); inf where the page does not give its size (a JPEG preview whose header tifffile could not
+    read, samples of different depths). A tile is whole even past the image's edge; a strip holds RowsPerStrip
+    rows, the last one of a plane the rows left."""
+    chunks, bits, length = len(page.dataoffsets), page.bitspersample, page.imagelength
+    if not isinstance(bits, int) or not bits or not length or not page.imagewidth:
+        return [(math.inf, math.inf)] * chunks
     if page.is_tiled:
-        return [math.prod(page.chunks) * page.bitspersample // 8] * chunks
-    if not rows:
-        return [math.inf] * chunks
-    row_bytes, strips = math.prod(page.chunks[1:]) * page.bitspersample // 8, math.ceil(page.imagelength / rows)
-    return [min(rows, page.imagelength - index % strips * rows) * row_bytes for index in range(chunks)]
+        samples = [math.prod(page.chunks)] * chunks
+    else:
+        rows, row_samples = min(page.rowsperstrip, length), math.prod(page.chunks[1:])
+        strips = math.ceil(length / rows)
+        samples = [min(rows, length - index % strips * rows) * row_samples for index in range(chunks)]
+    return [(n * bits // 8, n * math.ceil(bits / 8)) for n in samples]
 
 
 def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str

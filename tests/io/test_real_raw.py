@@ -93,6 +93,15 @@ def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw,
         read_ldr_frame(half)  # reconstruct's reader refuses it too (LibRaw alone would fill the missing rows)
 
 
+def test_a_copy_cut_inside_its_preview_is_refused_by_its_byte_counts(arw, tmp_path):
+    """Cut at byte 146000, before IFD0's preview JPEG: tifffile cannot read that JPEG's size, so IFD0 states none;
+    its count is then believed (the page must not end the byte-count check: the cut file decodes to zeros)."""
+    cut = tmp_path / "cut.ARW"
+    cut.write_bytes(arw.read_bytes()[:146000])
+    with pytest.raises(InputError, match=r"truncated or damaged: its image data runs to byte 18649856"):
+        read_raw(cut)
+
+
 def test_a_truncated_file_without_tiff_structure_is_caught_by_its_repeated_rows(arw, tmp_path, monkeypatch):
     """For formats that are not TIFF (CR3, RAF, ...) only the data tells: LibRaw repeats the last decoded row."""
     import hdrcam.io.raw as raw_module
