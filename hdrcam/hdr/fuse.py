@@ -89,6 +89,10 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks), with_variance=with_variance)
     meta = frames[0].metadata
+    orientations = sorted({frame.metadata.orientation for frame in frames})
+    if len(orientations) > 1:  # the merge is in sensor coordinates and unaffected; only the preview's turn is
+        warnings.warn(f"the frames' EXIF orientations differ ({', '.join(map(str, orientations))}; the camera was "
+                      f"tilted between shots): the preview is turned as {meta.path.name}'s ({meta.orientation})")
     rgb = demosaic(merge.rate, meta.cfa_pattern, demosaic_method)
     variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, demosaic_method) if with_variance else None
     clipped = cv2.dilate(merge.clipped_everywhere.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)

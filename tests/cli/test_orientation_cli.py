@@ -55,6 +55,17 @@ def test_fuse_keeps_the_sensors_pixels_and_turns_only_the_preview(tmp_path):
     assert np.array_equal(portrait_png, np.rot90(upright_png, -1))  # turned 90 degrees clockwise
 
 
+def test_fuse_warns_when_the_frames_orientations_differ(tmp_path):
+    folder = tmp_path / "tilted"
+    folder.mkdir()
+    radiance = np.full((HEIGHT, WIDTH), 2.0e5)
+    rng = np.random.default_rng(43)
+    for name, exposure, orientation in (("a.dng", 0.002, 1), ("b.dng", 0.008, 6)):
+        write_dng(folder / name, sensor_dn(radiance, exposure, rng), exposure_s=exposure, orientation=orientation)
+    with pytest.warns(UserWarning, match=r"orientations differ \(1, 6;"):
+        assert main(["fuse", str(folder), "--out", str(folder / "hdr.exr")]) == 0
+
+
 @pytest.mark.parametrize("orientation", [1, 6])
 def test_reconstruct_of_a_raw_records_the_orientation_and_turns_its_previews(tmp_path, capsys, orientation):
     frame = _bracket(tmp_path / "in", orientation) / "b.dng"
