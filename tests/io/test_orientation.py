@@ -14,7 +14,6 @@ from hdrcam.io.raw import read_raw, read_raw_metadata
 from hdrcam.preview import display_oriented
 from tests.io.realistic_dng import write_dng
 
-ARW_NAME = "sony-ilce7rm3-DSC2164.ARW"
 
 
 @pytest.mark.parametrize("orientation", range(1, 9))
@@ -37,14 +36,6 @@ def test_each_exif_orientation_is_read_and_turned_as_libraw_renders_it(tmp_path,
 
 def test_a_file_without_the_tag_is_upright(tmp_path):
     assert read_raw_metadata(write_dng(tmp_path / "f.dng", np.full((32, 48), 712, np.uint16))).orientation == 1
-
-
-@pytest.fixture
-def arw(shared_data):
-    path = shared_data / "raw" / ARW_NAME
-    if not path.is_file():
-        pytest.skip(f"{path} not found")
-    return path
 
 
 def test_the_real_arw_flagged_portrait_reads_orientation_6_and_the_same_pixels(arw, tmp_path):

@@ -23,16 +23,7 @@ from hdrcam.io.raw_summary import raw_summary
 from hdrcam.profiles import load_profile
 from tests.io.realistic_dng import XTRANS, sensor_dn, write_dng
 
-ARW_NAME = "sony-ilce7rm3-DSC2164.ARW"
 CAMERA = load_profile("simulated").camera
-
-
-@pytest.fixture
-def arw(shared_data):
-    path = shared_data / "raw" / ARW_NAME
-    if not path.is_file():
-        pytest.skip(f"{path} not found")
-    return path
 
 
 def _scene(height=64, width=96):
