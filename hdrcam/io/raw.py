@@ -507,6 +507,8 @@ def _uncompressed_bytes(page) -> list[tuple[float, float]]:
         samples = [math.prod(page.chunks)] * chunks
     else:
         rows, row_samples = min(page.rowsperstrip, length), math.prod(page.chunks[1:])
+        if not rows:  # RowsPerStrip 0 (invalid): the counts are believed
+            return [(math.inf, math.inf)] * chunks
         strips = math.ceil(length / rows)
         samples = [min(rows, length - index % strips * rows) * row_samples for index in range(chunks)]
     return [(n * bits // 8, n * math.ceil(bits / 8)) for n in samples]

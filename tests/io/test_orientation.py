@@ -15,7 +15,6 @@ from hdrcam.preview import display_oriented
 from tests.io.realistic_dng import write_dng
 
 
-
 @pytest.mark.parametrize("orientation", range(1, 9))
 def test_each_exif_orientation_is_read_and_turned_as_libraw_renders_it(tmp_path, orientation):
     """A bright patch in the sensor's top-left corner (wider than high): LibRaw's own half-size rendering,

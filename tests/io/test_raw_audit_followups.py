@@ -192,3 +192,15 @@ def test_a_staggered_dng_is_refused_as_staggered(tmp_path):
     path = write_dng(tmp_path / "staggered.dng", bayer, extra_tags=[(50711, "H", 1, (2,), True)])
     with pytest.raises(InputError, match=r"staggered\.dng: staggered CFA layout \(CFALayout 2"):
         read_raw(path)
+
+
+def test_a_page_with_rows_per_strip_0_keeps_its_byte_count_and_the_dngs_other_facts(tmp_path):
+    """RowsPerStrip 0 is invalid TIFF: the page's count is believed (no division by it), so the truncation check
+    and the DNG's CFA tags survive it."""
+    bayer = sensor_dn(np.full((64, 96), 2.0e5), 0.004, np.random.default_rng(5))
+    path = write_dng(tmp_path / "rps0.dng", bayer)
+    with tifffile.TiffFile(path, mode="r+b") as tiff:
+        tiff.pages[0].tags[278].overwrite(0)
+    facts = raw_module._tiff_facts(path)
+    assert facts.data_end_bytes > 0 and facts.data_end_checked and facts.cfa_repeat_dim == (2, 2)
+    assert np.array_equal(read_raw(path).bayer_dn, bayer)
