@@ -44,7 +44,7 @@ class Reconstruction:
 def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None, noise: NoiseModel | None = None,
                 adaptive: bool = True, tile_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
                 streak_fit: bool = False, mirror_check: bool = True, device: torch.device | str = "cpu",
-                dtype: torch.dtype = torch.float32, progress=None, regions=None) -> Reconstruction:
+                dtype: torch.dtype = torch.float32, progress=None, regions=None, partner=None) -> Reconstruction:
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
@@ -52,7 +52,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     ``network`` and ``psf``. ``psf``: the (3, k, k) unit-sum PSF the frame was taken through (a calibration's
     measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: that of the
     model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
-    one).
+    one). ``partner`` (opt-in): a second model trained for the same PSF; the network then runs under both and
+    only what both paint is kept (their per-pixel minimum, as for the mirror image; twice the network time):
+    independently trained networks seldom paint the same window the frame cannot refute.
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
     (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint
@@ -77,19 +79,27 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
+    if partner is not None and not _same_psf(model.psf, partner.psf):
+        raise ValueError("the partner model was trained behind another PSF than the model's")
+    networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
 
     def network_pass(image: np.ndarray, mirror: str | None) -> np.ndarray:
         planned = regions if regions is None or mirror is None else \
             [mirrored_region(region, mirror, image.shape[:2]) for region in regions]
-        hdr, report = reconstruct_frame(model.network, image, psf_radius_px=psf.shape[-1] // 2, adaptive=adaptive,
-                                        core_px=tile_px, halo_px=halo_px, device=torch.device(device),
-                                        dtype=dtype, progress=progress, regions=planned)
-        reports.append(report)
-        return hdr
+        agreed = None
+        for network in networks:
+            hdr, report = reconstruct_frame(network, image, psf_radius_px=psf.shape[-1] // 2, adaptive=adaptive,
+                                            core_px=tile_px, halo_px=halo_px, device=torch.device(device),
+                                            dtype=dtype, progress=progress, regions=planned)
+            reports.append(report)
+            agreed = hdr if agreed is None else np.minimum(agreed, hdr)
+        return agreed
 
     network_hdr = mirror_agreed(network_pass, frame, psf_mirror(psf) if mirror_check else None)
-    tiles = reports[0] if len(reports) == 1 else reports[0].with_mirror_pass(reports[1])
+    tiles = dataclasses.replace(reports[0], networks=len(networks))
+    for report in reports[1:]:
+        tiles = tiles.with_pass(report)
     estimate, fit_summary = network_hdr, "off"
     if streak_fit:
         estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
@@ -99,12 +109,17 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
 
 
-def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True) -> int:
+def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, partner: bool = False) -> int:
     """How many windows :func:`reconstruct` with ``regions`` (hdrcam.recon.tiling.plan_regions of the frame) runs
     the network on: each region's windows, twice when ``mirror_check`` and the (3, k, k) PSF equals its mirror
-    image (a progress bar's total)."""
+    image, twice again with a ``partner`` model (a progress bar's total)."""
     passes = 2 if mirror_check and psf_mirror(np.asarray(psf, np.float32)) else 1
-    return passes * sum(region.windows for region in regions)
+    return passes * (2 if partner else 1) * sum(region.windows for region in regions)
+
+
+def _same_psf(first: np.ndarray, second: np.ndarray) -> bool:
+    first, second = np.asarray(first, np.float32), np.asarray(second, np.float32)
+    return first.shape == second.shape and bool(np.allclose(first, second, atol=1e-6))
 
 
 def profile_noise(model) -> NoiseModel:

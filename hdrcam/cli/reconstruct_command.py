@@ -35,6 +35,9 @@ def register(commands) -> None:
     parser.add_argument("--streak-fit", action="store_true",
                         help="before the consistency check, refit each clipped blob's brightness to the streaks "
                              "by least squares (off by default: on real photographs it overshoots, see README)")
+    parser.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
+                        help="a second network trained for the same PSF: keep only what both paint (opt-in, twice "
+                             "the network time; see README)")
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="one network pass instead of two (the frame and its mirror image, keeping only what "
                              "both paint): half the network time, more invented highlights (see README)")
@@ -94,19 +97,21 @@ def run(arguments: argparse.Namespace) -> int:
                              arguments.checkpoint)
     else:
         model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
+    partner = load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else None
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)
                                  for source in arguments.inputs])  # every input checked before any work
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
-    progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check) for plan in plans),
+    progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check,
+                                                  partner=partner is not None) for plan in plans),
                     desc="reconstruct", unit="window")
     for source, frame, orientation, plan in zip(arguments.inputs, frames, orientations, plans):
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
-                             mirror_check=arguments.mirror_check,
+                             mirror_check=arguments.mirror_check, partner=partner,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
         if streaks.warning():

@@ -54,9 +54,9 @@ def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
-                    progress=None) -> tuple[list[ScoredImage], list[Example]]:
+                    partner: TrainedModel | None = None, progress=None) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
-    ``mirror_check``: :func:`hdrcam.api.reconstruct`'s option of that name."""
+    ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names."""
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
     captures = {label: OpticalCapture(load_profile(model.profile), psf=capture_psfs[label])
                 for label, model in models.items()}
@@ -75,7 +75,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             with torch.no_grad():
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
-            result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check)
+            result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check, partner=partner)
             if label == first:
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, result.network_hdr)

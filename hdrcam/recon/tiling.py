@@ -69,20 +69,25 @@ class TileReport:
     clipped_pixels: int
     seconds: float
     passes: int = 1  # 2: the frame and its mirror image (hdrcam.recon.mirror_agreement); counts above are totals
+    networks: int = 1  # 2: a partner network ran as well (hdrcam.api.reconstruct), on every pass's windows
 
     def summary(self) -> str:
         if self.windows_run == 0:
             return f"no clipped pixels: highlight recovery skipped ({self.windows} windows passed through)"
         share = 100.0 * self.network_pixels / (self.full_frame_network_pixels * self.passes)
-        passes = " in 2 passes (the frame and its mirror image)" if self.passes == 2 else ""
+        mirror = self.passes > self.networks
+        passes = "" if self.passes == 1 else f" in {self.passes} passes (" + ", ".join(
+            (["the frame and its mirror image"] if mirror else []) +
+            ([f"{'each ' if mirror else ''}through {self.networks} networks"] if self.networks > 1 else [])) + ")"
         return (f"{self.clipped_pixels} clipped pixels; network ran on {self.windows_run} windows{passes}, "
                 f"{share:.0f} % of the pixels full-frame processing ({self.windows} windows) would run")
 
-    def with_mirror_pass(self, mirror_pass: TileReport) -> TileReport:
-        """This pass's report with a mirror pass's windows, pixels and seconds added."""
-        return dataclasses.replace(self, windows_run=self.windows_run + mirror_pass.windows_run,
-                                   network_pixels=self.network_pixels + mirror_pass.network_pixels,
-                                   seconds=self.seconds + mirror_pass.seconds, passes=self.passes + 1)
+    def with_pass(self, other: TileReport) -> TileReport:
+        """This pass's report with another pass's windows, pixels and seconds added (the mirror image's, a partner
+        network's)."""
+        return dataclasses.replace(self, windows_run=self.windows_run + other.windows_run,
+                                   network_pixels=self.network_pixels + other.network_pixels,
+                                   seconds=self.seconds + other.seconds, passes=self.passes + 1)
 
 
 def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:
