@@ -29,7 +29,7 @@ class Reconstruction:
     white at the frame's exposure."""
 
     hdr: np.ndarray  # H x W x 3: the reconstruction
-    network_hdr: np.ndarray  # H x W x 3: the network's output (both passes agreed) before the frame checked it
+    network_hdr: np.ndarray  # H x W x 3: the network's output (every pass agreed) before the frame checked it
     confidence: np.ndarray  # H x W in [0, 1]: 1 = the frame supports the value (or recorded it); 0 = fell back
     tiles: TileReport
     consistency: ConsistencyReport
@@ -79,7 +79,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
-    if partner is not None and not _same_psf(model.psf, partner.psf):
+    if partner is not None and not same_psf(model.psf, partner.psf):
         raise ValueError("the partner model was trained behind another PSF than the model's")
     networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
@@ -117,7 +117,9 @@ def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, part
     return passes * (2 if partner else 1) * sum(region.windows for region in regions)
 
 
-def _same_psf(first: np.ndarray, second: np.ndarray) -> bool:
+def same_psf(first: np.ndarray, second: np.ndarray) -> bool:
+    """Whether two (3, k, k) PSFs are the same (float32, to 1e-6 absolute): a ``partner`` must have been trained
+    behind its model's PSF."""
     first, second = np.asarray(first, np.float32), np.asarray(second, np.float32)
     return first.shape == second.shape and bool(np.allclose(first, second, atol=1e-6))
 

@@ -74,7 +74,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.api import network_windows, reconstruct
+    from hdrcam.api import network_windows, reconstruct, same_psf
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
     from hdrcam.train.checkpoint import TrainedModel, load_model
@@ -91,13 +91,17 @@ def run(arguments: argparse.Namespace) -> int:
                                  "rename one of them")
             planned[same_file_key(path)] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
-    if arguments.checkpoint and arguments.checkpoint.suffix.lower() == ".onnx":
-        network = OnnxNetwork(arguments.checkpoint)
-        model = TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0,
-                             arguments.checkpoint)
-    else:
-        model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
-    partner = load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else None
+    def network_model(path: Path | None) -> TrainedModel:
+        if path and path.suffix.lower() == ".onnx":
+            network = OnnxNetwork(path)
+            return TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, path)
+        return load_model(path, vgg_weights=arguments.vgg_weights)
+
+    model = network_model(arguments.checkpoint)
+    partner = network_model(arguments.partner) if arguments.partner else None
+    if partner is not None and not same_psf(model.psf, partner.psf):
+        raise InputError(f"{arguments.partner} was trained behind another PSF than {model.source}: a partner must "
+                         "share its model's PSF")
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)

@@ -68,7 +68,7 @@ class TileReport:
     full_frame_network_pixels: int  # the same for full-frame processing
     clipped_pixels: int
     seconds: float
-    passes: int = 1  # 2: the frame and its mirror image (hdrcam.recon.mirror_agreement); counts above are totals
+    passes: int = 1  # the frame, its mirror image (hdrcam.recon.mirror_agreement), each per network; counts are totals
     networks: int = 1  # 2: a partner network ran as well (hdrcam.api.reconstruct), on every pass's windows
 
     def summary(self) -> str:

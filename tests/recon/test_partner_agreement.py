@@ -74,3 +74,16 @@ def test_cli_reconstruct_with_a_partner_runs_both(tmp_path, capsys):
     assert main(["reconstruct", str(source), "--partner", str(SHIPPED_CHECKPOINT), "--out", str(tmp_path / "out")]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert "in 4 passes (the frame and its mirror image, each through 2 networks)" in report["work"]
+
+
+def test_cli_refuses_a_partner_behind_another_psf_before_any_work(tmp_path, capsys):
+    source = tmp_path / "frame.exr"
+    write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
+    windshield = SHIPPED_CHECKPOINT.parent / "windshield-fast.pt"
+    assert main(["reconstruct", str(source), "--partner", str(windshield), "--out", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err
+    assert "windshield-fast.pt was trained behind another PSF" in error and "internal error" not in error
+    assert not (tmp_path / "out").exists()
+    assert main(["evaluate", "--partner", str(windshield), "--count", "1", "--size", "64",
+                 "--out", str(tmp_path / "ev")]) == 1
+    assert "another PSF" in capsys.readouterr().err
