@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import torch
 
+from hdrcam.errors import InputError
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
@@ -79,8 +80,8 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
-    if partner is not None and not same_psf(model.psf, partner.psf):
-        raise ValueError("the partner model was trained behind another PSF than the model's")
+    if partner is not None:
+        check_partner(model, partner)
     networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
 
@@ -117,11 +118,13 @@ def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, part
     return passes * (2 if partner else 1) * sum(region.windows for region in regions)
 
 
-def same_psf(first: np.ndarray, second: np.ndarray) -> bool:
-    """Whether two (3, k, k) PSFs are the same (float32, to 1e-6 absolute): a ``partner`` must have been trained
-    behind its model's PSF."""
-    first, second = np.asarray(first, np.float32), np.asarray(second, np.float32)
-    return first.shape == second.shape and bool(np.allclose(first, second, atol=1e-6))
+def check_partner(model, partner) -> None:
+    """InputError unless ``partner`` was trained behind ``model``'s PSF (the same (3, k, k) float32 PSF to 1e-6
+    absolute): :func:`reconstruct`'s ``partner`` must be, and commands check it before any work."""
+    first, second = np.asarray(model.psf, np.float32), np.asarray(partner.psf, np.float32)
+    if first.shape != second.shape or not np.allclose(first, second, atol=1e-6):
+        raise InputError(f"{getattr(partner, 'source', 'the partner')} was trained behind another PSF than "
+                         f"{getattr(model, 'source', 'the model')}: a partner must share its model's PSF")
 
 
 def profile_noise(model) -> NoiseModel:

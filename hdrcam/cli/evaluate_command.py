@@ -55,7 +55,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.limits import check_image_size
     from hdrcam.recon.tiling import FRAME_BYTES_PER_PIXEL, WINDOW_BYTES_PER_PIXEL
-    from hdrcam.api import same_psf
+    from hdrcam.api import check_partner
     from hdrcam.train.checkpoint import load_model
 
     if arguments.size % 16 or arguments.size < 32:
@@ -67,10 +67,8 @@ def run(arguments: argparse.Namespace) -> int:
               for label, path in _labelled(arguments.checkpoint).items()}
     psf = load_psf(arguments.psf) if arguments.psf else None
     partner = load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else None
-    for label, model in models.items():
-        if partner is not None and not same_psf(model.psf, partner.psf):
-            raise InputError(f"{arguments.partner} was trained behind another PSF than {label} ({model.source}): a "
-                             "partner must share its model's PSF")
+    for model in models.values() if partner is not None else ():
+        check_partner(model, partner)  # before any scoring
     source = SceneSource(arguments.data)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()

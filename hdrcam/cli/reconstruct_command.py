@@ -74,7 +74,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
     from hdrcam.profiles import load_profile
     from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.api import network_windows, reconstruct, same_psf
+    from hdrcam.api import check_partner, network_windows, reconstruct
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
     from hdrcam.train.checkpoint import TrainedModel, load_model
@@ -99,9 +99,8 @@ def run(arguments: argparse.Namespace) -> int:
 
     model = network_model(arguments.checkpoint)
     partner = network_model(arguments.partner) if arguments.partner else None
-    if partner is not None and not same_psf(model.psf, partner.psf):
-        raise InputError(f"{arguments.partner} was trained behind another PSF than {model.source}: a partner must "
-                         "share its model's PSF")
+    if partner is not None:
+        check_partner(model, partner)  # before any frame is read
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)

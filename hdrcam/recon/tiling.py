@@ -76,9 +76,9 @@ class TileReport:
             return f"no clipped pixels: highlight recovery skipped ({self.windows} windows passed through)"
         share = 100.0 * self.network_pixels / (self.full_frame_network_pixels * self.passes)
         mirror = self.passes > self.networks
-        passes = "" if self.passes == 1 else f" in {self.passes} passes (" + ", ".join(
-            (["the frame and its mirror image"] if mirror else []) +
-            ([f"{'each ' if mirror else ''}through {self.networks} networks"] if self.networks > 1 else [])) + ")"
+        parts = (["the frame and its mirror image"] if mirror else []) + \
+            ([f"{'each ' if mirror else ''}through {self.networks} networks"] if self.networks > 1 else [])
+        passes = f" in {self.passes} passes ({', '.join(parts)})" if parts else ""
         return (f"{self.clipped_pixels} clipped pixels; network ran on {self.windows_run} windows{passes}, "
                 f"{share:.0f} % of the pixels full-frame processing ({self.windows} windows) would run")
 

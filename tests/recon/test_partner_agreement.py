@@ -12,6 +12,7 @@ import torch
 
 from hdrcam.api import network_windows, reconstruct
 from hdrcam.cli import main
+from hdrcam.errors import InputError
 from hdrcam.io.exr import write_exr
 from hdrcam.recon.tiling import CLIP_LEVEL, plan_regions
 from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model
@@ -64,7 +65,7 @@ def test_a_partner_trained_behind_another_psf_is_refused(psf):
     other = np.roll(psf, 1, axis=-1)
     model, partner = types.SimpleNamespace(network=Painter(2.0), psf=psf), types.SimpleNamespace(
         network=Painter(2.0), psf=other)
-    with pytest.raises(ValueError, match="another PSF"):
+    with pytest.raises(InputError, match="another PSF"):
         reconstruct(frame_with_a_window(), model, partner=partner)
 
 
