@@ -9,6 +9,7 @@ all call, so what is scored is exactly what users get.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import torch
@@ -18,6 +19,7 @@ from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consist
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.mirror_agreement import mirror_agreed, mirrored_region, psf_mirror
+from hdrcam.recon.network_agreement import judge_pair
 from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
@@ -30,7 +32,8 @@ class Reconstruction:
     white at the frame's exposure."""
 
     hdr: np.ndarray  # H x W x 3: the reconstruction
-    network_hdr: np.ndarray  # H x W x 3: the network's output (every pass agreed) before the frame checked it
+    network_hdr: np.ndarray  # H x W x 3: the network's output (every pass agreed; with a partner, the proposal
+    # network_agreement.judge_pair took per pixel) before the frame checked it
     confidence: np.ndarray  # H x W in [0, 1]: 1 = the frame supports the value (or recorded it); 0 = fell back
     tiles: TileReport
     consistency: ConsistencyReport
@@ -53,8 +56,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     ``network`` and ``psf``. ``psf``: the (3, k, k) unit-sum PSF the frame was taken through (a calibration's
     measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: that of the
     model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
-    one). ``partner`` (opt-in): a second model trained for the same PSF; the network then runs under both and
-    only what both paint is kept (their per-pixel minimum, as for the mirror image; twice the network time):
+    one). ``partner`` (opt-in): a second model trained for the same PSF; both networks run (twice the network
+    time) and only what both paint is kept (their per-pixel minimum), except on clusters whose streaks confirm
+    one network's own proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three times):
     independently trained networks seldom paint the same window the frame cannot refute.
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
@@ -85,29 +89,33 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
 
-    def network_pass(image: np.ndarray, mirror: str | None) -> np.ndarray:
+    def network_pass(network, image: np.ndarray, mirror: str | None) -> np.ndarray:
         planned = regions if regions is None or mirror is None else \
             [mirrored_region(region, mirror, image.shape[:2]) for region in regions]
-        agreed = None
-        for network in networks:
-            hdr, report = reconstruct_frame(network, image, psf_radius_px=psf.shape[-1] // 2, adaptive=adaptive,
-                                            core_px=tile_px, halo_px=halo_px, device=torch.device(device),
-                                            dtype=dtype, progress=progress, regions=planned)
-            reports.append(report)
-            agreed = hdr if agreed is None else np.minimum(agreed, hdr)
-        return agreed
+        hdr, report = reconstruct_frame(network, image, psf_radius_px=psf.shape[-1] // 2, adaptive=adaptive,
+                                        core_px=tile_px, halo_px=halo_px, device=torch.device(device),
+                                        dtype=dtype, progress=progress, regions=planned)
+        reports.append(report)
+        return hdr
 
-    network_hdr = mirror_agreed(network_pass, frame, psf_mirror(psf) if mirror_check else None)
+    mirror = psf_mirror(psf) if mirror_check else None
+    proposals = [mirror_agreed(functools.partial(network_pass, network), frame, mirror) for network in networks]
     tiles = dataclasses.replace(reports[0], networks=len(networks))
     for report in reports[1:]:
         tiles = tiles.with_pass(report)
-    estimate, fit_summary = network_hdr, "off"
+    fit_summaries = []
     if streak_fit:
-        estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
-        fit_summary = fit.summary()
-    consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise or profile_noise(model))
+        for index, proposal in enumerate(proposals):
+            proposals[index], fit = refine_highlight_amplitudes(frame, proposal, psf, clipped_mask(frame))
+            fit_summaries.append(fit.summary())
+    noise = noise or profile_noise(model)
+    if partner is None:
+        network_hdr = proposals[0]
+        consistent, confidence, report = make_consistent(frame, network_hdr, psf, noise=noise)
+    else:
+        network_hdr, consistent, confidence, report = judge_pair(frame, *proposals, psf, noise=noise)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
-    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
+    return Reconstruction(hdr, network_hdr, confidence, tiles, report, "; ".join(fit_summaries) or "off")
 
 
 def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, partner: bool = False) -> int:

@@ -97,6 +97,9 @@ class ConsistencyReport:
     kept_excess: float
     clipped_pixels: int
     fallen_back_pixels: int  # clipped pixels that kept less than FALLEN_BACK_SHARE of their proposed excess
+    # H x W bool: clipped pixels of the clusters whose streak evidence confirmed the proposal (z >=
+    # STRONG_EVIDENCE_Z, shares >= STRONG_EVIDENCE_SHARE: exempt from the shape cap); None where not recorded
+    confirmed: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def fallback_fraction(self) -> float:
@@ -123,7 +126,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     floored = np.where(clipped_channels, np.maximum(estimate, 1.0), frame).astype(np.float32)
     confidence = np.ones(frame.shape[:2], np.float32)
     if not clipped.any():
-        return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0)
+        return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool))
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     output = floored.copy()
     proposed = kept = 0.0
@@ -155,7 +158,8 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         kept += float(kept_excess.sum())
     output = _cap_shapes(output, clipped_channels, clipped, confirmed)
     fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
-    return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back)
+    return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back,
+                                                 confirmed)
 
 
 def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor

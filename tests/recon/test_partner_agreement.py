@@ -1,5 +1,6 @@
 """A partner network's second opinion (``reconstruct(..., partner=)``, ``--partner``): only what both networks paint
-is kept, with the mirror pass as before, and the partner must have been trained behind the same PSF."""
+is kept, with the mirror pass as before, unless the frame's streaks confirm one network's proposal
+(hdrcam.recon.network_agreement); the partner must have been trained behind the same PSF."""
 
 from __future__ import annotations
 
@@ -88,3 +89,74 @@ def test_cli_refuses_a_partner_behind_another_psf_before_any_work(tmp_path, caps
     assert main(["evaluate", "--partner", str(windshield), "--count", "1", "--size", "64",
                  "--out", str(tmp_path / "ev")]) == 1
     assert "another PSF" in capsys.readouterr().err
+
+
+def _captured_lamp(psf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A 7 x 7 lamp (rim 3 x white, centre 400 x) on 0.05, captured through ``psf`` with the default camera's
+    noise: its streaks confirm an exact proposal beyond doubt (tests/recon/test_do_no_harm.py)."""
+    from hdrcam.recon.consistency import NoiseModel
+    from hdrcam.sensor import fft_convolve
+
+    truth = np.full((128, 128, 3), 0.05, np.float32)
+    truth[61:68, 61:68] = 3.0
+    truth[64, 64] = 400.0
+    planes = torch.from_numpy(np.ascontiguousarray(truth.transpose(2, 0, 1)))
+    clean = fft_convolve(planes, torch.from_numpy(np.ascontiguousarray(psf, np.float32))).numpy().transpose(1, 2, 0)
+    noisy = clean + NoiseModel().sigma(clean) * np.random.default_rng(0).standard_normal(clean.shape)
+    return truth, np.clip(noisy, 0.0, 1.0).astype(np.float32)
+
+
+def test_a_cluster_the_streaks_confirm_in_one_network_keeps_that_networks_judged_result(psf):
+    """One network proposes the lamp exactly, the other paints it white (no excess): the minimum would keep a
+    white lamp, but the streaks confirm the exact proposal, so its judged result and confidence are kept."""
+    from hdrcam.recon.consistency import NoiseModel, make_consistent
+    from hdrcam.recon.network_agreement import judge_pair
+
+    truth, frame = _captured_lamp(psf)
+    clipped = frame >= CLIP_LEVEL
+    exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
+    white = np.where(clipped, 1.0, frame).astype(np.float32)
+    proposal, judged, confidence, report = judge_pair(frame, white, exact, psf, noise=NoiseModel())
+    judged_exact, confidence_exact, report_exact = make_consistent(frame, exact, psf, noise=NoiseModel())
+    lamp = report_exact.confirmed
+    assert lamp[64, 64] and clipped.any(axis=-1)[lamp].all()
+    assert np.array_equal(judged[lamp], judged_exact[lamp]) and np.array_equal(proposal[lamp], exact[lamp])
+    assert np.array_equal(confidence[lamp], confidence_exact[lamp]) and confidence_exact[lamp].min() < 1.0
+    assert float(judged[64, 64].mean()) >= 0.8 * 400.0
+    assert float(make_consistent(frame, white, psf, noise=NoiseModel())[0][64, 64].mean()) == 1.0
+    assert report.confirmed[64, 64] and 0.0 <= report.fallback_fraction < 0.5
+
+
+def test_confirmed_in_both_networks_the_larger_judged_value_is_kept(psf):
+    """The other network proposes a tenth of the lamp's excess: the streaks show at least that much light, so
+    both are confirmed, and the larger judged value (with its network's confidence) is kept, not the minimum."""
+    from hdrcam.recon.consistency import NoiseModel, make_consistent
+    from hdrcam.recon.network_agreement import judge_pair
+
+    truth, frame = _captured_lamp(psf)
+    clipped = frame >= CLIP_LEVEL
+    exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
+    dim = np.where(clipped, 1.0 + 0.1 * (exact - 1.0), frame).astype(np.float32)
+    _, judged, confidence, _ = judge_pair(frame, dim, exact, psf, noise=NoiseModel())
+    first, _, report_first = make_consistent(frame, dim, psf, noise=NoiseModel())
+    second, confidence_second, report_second = make_consistent(frame, exact, psf, noise=NoiseModel())
+    both = report_first.confirmed & report_second.confirmed
+    assert both[64, 64] and float(first[64, 64].mean()) < 50.0
+    assert np.array_equal(judged[both], np.maximum(first, second)[both])
+    assert float(judged[64, 64].mean()) >= 0.8 * 400.0 and confidence[64, 64] == confidence_second[64, 64]
+
+
+def test_without_confirming_streaks_only_what_both_paint_is_judged(psf):
+    """A clipped window on a flat frame carries no streaks: the pair's result is the judged minimum."""
+    from hdrcam.recon.consistency import NoiseModel, make_consistent
+    from hdrcam.recon.network_agreement import judge_pair
+
+    frame = frame_with_a_window()
+    clipped = frame >= CLIP_LEVEL
+    bright, dim = (np.where(clipped, level, frame).astype(np.float32) for level in (8.0, 2.0))
+    proposal, judged, confidence, report = judge_pair(frame, bright, dim, psf, noise=NoiseModel())
+    expected, expected_confidence, expected_report = make_consistent(frame, dim, psf, noise=NoiseModel())
+    assert not report.confirmed.any()
+    assert np.array_equal(proposal, dim) and np.array_equal(judged, expected)
+    assert np.array_equal(confidence, expected_confidence)
+    assert report.fallen_back_pixels == expected_report.fallen_back_pixels == int(clipped.any(axis=-1).sum())
