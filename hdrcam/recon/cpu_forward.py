@@ -29,6 +29,13 @@ PROBE_PX = 32  # side of the random frame each compiled model is checked on agai
 PROBE_TOLERANCE = 1e-3  # relative and absolute tolerance of that check (radiance, 1 = white)
 
 _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network -> its CompiledForward
+# Every OpenVINO compiled model and request made in this process, never released. With them released, the
+# test suite's process died of SIGSEGV (si_code SI_KERNEL, raised on signal delivery rather than by a bad access)
+# when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after tests/cli/test_recon_cli.py had run
+# the two default networks; OpenVINO's CPU plugin calls sigaltstack on the compiling thread (gdb), so a
+# released model apparently leaves that thread's alternate signal stack dangling. Not reproduced outside
+# pytest. A compiled `fast` network holds a few MB; a process compiles one per network it runs.
+_never_released: list = []
 
 
 class CompiledForward:
@@ -51,6 +58,7 @@ class CompiledForward:
             "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
             "ENABLE_CPU_PINNING": False})
         self.request = self.compiled.create_infer_request()
+        _never_released.append((self.compiled, self.request))
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
         """Whether the compiled model still runs ``network``'s current weights on ``threads`` threads."""
