@@ -48,7 +48,7 @@ class Reconstruction:
 def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None, noise: NoiseModel | None = None,
                 adaptive: bool = True, tile_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
                 streak_fit: bool = False, mirror_check: bool = True, device: torch.device | str = "cpu",
-                dtype: torch.dtype = torch.float32, progress=None, regions=None, partner=None) -> Reconstruction:
+                dtype: torch.dtype = torch.float32, progress=None, regions=None, partner="auto") -> Reconstruction:
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
@@ -56,10 +56,12 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     ``network`` and ``psf``. ``psf``: the (3, k, k) unit-sum PSF the frame was taken through (a calibration's
     measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: that of the
     model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
-    one). ``partner`` (opt-in): a second model trained for the same PSF; both networks run (twice the network
-    time) and only what both paint is kept (their per-pixel minimum), except on clusters whose streaks confirm
-    one network's own proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three times):
-    independently trained networks seldom paint the same window the frame cannot refute.
+    one). ``partner``: a second model trained for the same PSF - "auto" (default): the checkpoint NAME-partner.pt
+    beside the model's NAME.pt where there is one (the shipped checkpoint has one), None: the model alone, or a
+    model. With a partner both networks run (twice the network time) and only what both paint is kept (their
+    per-pixel minimum), except on clusters whose streaks confirm one network's own proposal beyond doubt
+    (hdrcam.recon.network_agreement; the judge runs three times): independently trained networks seldom paint
+    the same window the frame cannot refute.
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
     (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint
@@ -84,8 +86,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
-    if partner is not None:
-        check_partner(model, partner)
+    partner = resolve_partner(model, partner)
     networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
 
@@ -124,6 +125,36 @@ def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, part
     image, twice again with a ``partner`` model (a progress bar's total)."""
     passes = 2 if mirror_check and psf_mirror(np.asarray(psf, np.float32)) else 1
     return passes * (2 if partner else 1) * sum(region.windows for region in regions)
+
+
+def load_network_model(path, *, vgg_weights=None):
+    """A :class:`hdrcam.train.checkpoint.TrainedModel` from a checkpoint, or from an .onnx file written by
+    ``hdrcam export`` (run with onnxruntime)."""
+    from pathlib import Path
+
+    from hdrcam.train.checkpoint import TrainedModel, load_model
+
+    if path and Path(path).suffix.lower() == ".onnx":
+        from hdrcam.recon.export import OnnxNetwork
+
+        network = OnnxNetwork(Path(path))
+        return TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, Path(path))
+    return load_model(path, vgg_weights=vgg_weights)
+
+
+def resolve_partner(model, partner="auto", *, vgg_weights=None):
+    """:func:`reconstruct`'s ``partner`` -> the model to run beside ``model``, or None: "auto" = the checkpoint
+    NAME-partner.pt beside the model's NAME.pt (hdrcam.train.checkpoint.partner_checkpoint) where that file
+    exists, None = none, a model = itself. A partner behind another PSF than the model's is an InputError."""
+    if isinstance(partner, str) and partner == "auto":
+        from hdrcam.train.checkpoint import partner_checkpoint
+
+        source = getattr(model, "source", None)
+        path = partner_checkpoint(source) if source else None
+        partner = load_network_model(path, vgg_weights=vgg_weights) if path and path.is_file() else None
+    if partner is not None:
+        check_partner(model, partner)
+    return partner
 
 
 def check_partner(model, partner) -> None:

@@ -199,7 +199,8 @@ def table(rows: list[dict], arguments, checkpoint: Path, seconds: float) -> str:
     lines = [f"RAW path on {arguments.folder} ({len(rows)} photographs, {SIZE_PX} px test crops as `hdrcam "
              f"evaluate`), checkpoint {checkpoint}"
              f"{' (reconstruct --no-mirror-check)' if arguments.no_mirror_check else ''}"
-             f"{f' (reconstruct --partner {arguments.partner})' if arguments.partner else ''}, "
+             f"{f' (reconstruct --partner {arguments.partner})' if arguments.partner else ''}"
+             f"{' (reconstruct --no-partner)' if arguments.no_partner else ''}, "
              f"noise seed {arguments.seed}; truth in camera RGB (colour "
              "matrix of the simulated A7 applied), 1.0 = DNG white. PSNR linear, peak 2^8.", "",
              "| photograph | LDR dB | reconstruct dB | gain dB | LDR PU21 | reconstruct PU21 |",
@@ -234,7 +235,9 @@ def main() -> int:
     parser.add_argument("--count", type=int, default=None, help="only the first N photographs")
     parser.add_argument("--seed", type=int, default=0, help="simulated camera seed (noise, shutter error, defects)")
     parser.add_argument("--no-mirror-check", action="store_true", help="pass --no-mirror-check to reconstruct")
-    parser.add_argument("--partner", type=Path, default=None, help="pass --partner CHECKPOINT to reconstruct")
+    partners = parser.add_mutually_exclusive_group()
+    partners.add_argument("--partner", type=Path, default=None, help="pass --partner CHECKPOINT to reconstruct")
+    partners.add_argument("--no-partner", action="store_true", help="pass --no-partner to reconstruct")
     arguments = parser.parse_args()
     if arguments.count is not None and arguments.count < 1:
         parser.error(f"--count must be at least 1, got {arguments.count}")
@@ -249,7 +252,8 @@ def main() -> int:
             for index, path in enumerate(files):
                 rows.append(bench_one(path, index, model, checkpoint, profile, arguments.seed, Path(work),
                                       (["--no-mirror-check"] if arguments.no_mirror_check else []) +
-                                      (["--partner", str(arguments.partner)] if arguments.partner else [])))
+                                      (["--partner", str(arguments.partner)] if arguments.partner else []) +
+                                      (["--no-partner"] if arguments.no_partner else [])))
                 row = rows[-1]
                 print(f"{row['name']}: LDR {row['ldr']:.2f} dB, reconstruct {row['recon']:.2f} dB, Bayer median "
                       f"rel {100 * row['bayer_median_rel']:+.3f} %, z {row['z_mean']:+.3f} +- {row['z_std']:.3f}",

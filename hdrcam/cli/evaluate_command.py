@@ -24,8 +24,12 @@ def register(commands) -> None:
     parser.add_argument("--seed", type=int, default=0, help="noise seed of the captures")
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="score reconstruct's one-pass option (no mirror-image second opinion)")
-    parser.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
-                        help="score reconstruct --partner: every checkpoint with this second network")
+    partners = parser.add_mutually_exclusive_group()
+    partners.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
+                          help="score reconstruct --partner: every checkpoint with this second network (default: "
+                               "each checkpoint's own NAME-partner.pt beside it, where there is one)")
+    partners.add_argument("--no-partner", action="store_true",
+                          help="score reconstruct --no-partner: each checkpoint's network alone")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
@@ -55,7 +59,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.limits import check_image_size
     from hdrcam.recon.tiling import FRAME_BYTES_PER_PIXEL, WINDOW_BYTES_PER_PIXEL
-    from hdrcam.api import check_partner
+    from hdrcam.api import resolve_partner
     from hdrcam.train.checkpoint import load_model
 
     if arguments.size % 16 or arguments.size < 32:
@@ -66,23 +70,26 @@ def run(arguments: argparse.Namespace) -> int:
     models = {label: load_model(path, vgg_weights=arguments.vgg_weights)
               for label, path in _labelled(arguments.checkpoint).items()}
     psf = load_psf(arguments.psf) if arguments.psf else None
-    partner = load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else None
-    for model in models.values() if partner is not None else ():
-        check_partner(model, partner)  # before any scoring
+    wanted = None if arguments.no_partner else (
+        load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
+    partners = {label: resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)
+                for label, model in models.items()}  # before any scoring
     source = SceneSource(arguments.data)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
-                                         partner=partner, progress=progress)
+                                         partner=partners, progress=progress)
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "
                    f"Checkpoints: " + ", ".join(f"{label} = {model.source} (preset {model.preset}, step {model.step})"
                                                 for label, model in models.items()) + ".")
-    if partner:
-        description += f" Each with the partner network {arguments.partner} (reconstruct --partner)."
+    paired = [f"{label} with {partner.source}" for label, partner in partners.items() if partner is not None]
+    if paired:
+        description += (" Partner networks (reconstruct keeps what both paint unless the streaks confirm one): "
+                        + ", ".join(paired) + ".")
     write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
     print(summary_markdown(rows, description), end="")
     print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/metrics.csv, summary.md, "

@@ -35,9 +35,13 @@ def register(commands) -> None:
     parser.add_argument("--streak-fit", action="store_true",
                         help="before the consistency check, refit each clipped blob's brightness to the streaks "
                              "by least squares (off by default: on real photographs it overshoots, see README)")
-    parser.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
-                        help="a second network trained for the same PSF: keep only what both paint (opt-in, twice "
-                             "the network time; see README)")
+    partners = parser.add_mutually_exclusive_group()
+    partners.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
+                          help="a second network trained for the same PSF: keep only what both paint unless the "
+                               "streaks confirm one (default: NAME-partner.pt beside the checkpoint NAME.pt, when "
+                               "there is one; twice the network time; see README)")
+    partners.add_argument("--no-partner", action="store_true",
+                          help="the checkpoint's network alone, even where a partner lies beside it")
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="one network pass instead of two (the frame and its mirror image, keeping only what "
                              "both paint): half the network time, more invented highlights (see README)")
@@ -73,11 +77,9 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
     from hdrcam.profiles import load_profile
-    from hdrcam.recon.export import OnnxNetwork
-    from hdrcam.api import check_partner, network_windows, reconstruct
+    from hdrcam.api import load_network_model, network_windows, reconstruct, resolve_partner
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
-    from hdrcam.train.checkpoint import TrainedModel, load_model
 
     device = compute_device(arguments.device)
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
@@ -91,16 +93,10 @@ def run(arguments: argparse.Namespace) -> int:
                                  "rename one of them")
             planned[same_file_key(path)] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
-    def network_model(path: Path | None) -> TrainedModel:
-        if path and path.suffix.lower() == ".onnx":
-            network = OnnxNetwork(path)
-            return TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, path)
-        return load_model(path, vgg_weights=arguments.vgg_weights)
-
-    model = network_model(arguments.checkpoint)
-    partner = network_model(arguments.partner) if arguments.partner else None
-    if partner is not None:
-        check_partner(model, partner)  # before any frame is read
+    model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
+    wanted = None if arguments.no_partner else (
+        load_network_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
+    partner = resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)  # before any frame is read
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)
@@ -123,8 +119,10 @@ def run(arguments: argparse.Namespace) -> int:
             print(f"{source.name}: {result.consistency.summary()} (confidence map: "
                   f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
         exr_path, png_path, confidence_path = output_paths(arguments.out, source)
-        attributes = {"source": str(source), "checkpoint": str(model.source), "units": "relative radiance, 1.0 = "
-                      "sensor white at the capture's exposure", "colour": "camera RGB", "orientation": orientation,
+        attributes = {"source": str(source), "checkpoint": str(model.source),
+                      "partner": str(partner.source) if partner is not None else "none",
+                      "units": "relative radiance, 1.0 = sensor white at the capture's exposure",
+                      "colour": "camera RGB", "orientation": orientation,
                       "windows_run": result.tiles.windows_run, "windows": result.tiles.windows,
                       "clipped_streak_pixels": streaks.clipped_streak_pixels,
                       "fallback_fraction": round(result.fallback_fraction, 4)}

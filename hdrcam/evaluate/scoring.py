@@ -20,7 +20,7 @@ import dataclasses
 import numpy as np
 import torch
 
-from hdrcam.api import reconstruct
+from hdrcam.api import reconstruct, resolve_partner
 from hdrcam.data.saturation import clipped_fraction
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
@@ -54,9 +54,12 @@ def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
-                    partner: TrainedModel | None = None, progress=None) -> tuple[list[ScoredImage], list[Example]]:
+                    partner="auto", progress=None) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
-    ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names."""
+    ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
+    model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner or None."""
+    partners = {label: partner[label] if isinstance(partner, dict) else resolve_partner(model, partner)
+                for label, model in models.items()}
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
     captures = {label: OpticalCapture(load_profile(model.profile), psf=capture_psfs[label])
                 for label, model in models.items()}
@@ -75,7 +78,8 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             with torch.no_grad():
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
-            result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check, partner=partner)
+            result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check,
+                                 partner=partners[label])
             if label == first:
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, result.network_hdr)

@@ -25,6 +25,14 @@ from hdrcam.recon.vgg import load_vgg19
 
 CHECKPOINT_FORMAT = "hdrcam-checkpoint/1"
 SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "checkpoints" / "simulated-rank1-fast.pt"
+PARTNER_SUFFIX = "-partner"  # NAME-partner.pt beside NAME.pt: a second network trained behind the same PSF
+
+
+def partner_checkpoint(path: Path) -> Path:
+    """Where the partner of checkpoint ``path`` lives: NAME-partner.pt beside NAME.pt (hdrcam.api.reconstruct
+    takes it when the file exists; finetune writes it)."""
+    path = Path(path)
+    return path.with_name(path.stem + PARTNER_SUFFIX + path.suffix)
 
 
 def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:

@@ -89,7 +89,8 @@ def test_reconstruct_writes_hdr_mask_confidence_and_previews(night_frame, tmp_pa
     frame = read_exr(night_frame / "frame.exr").rgb()
     assert confidence.min() >= 0.0 and confidence.max() <= 1.0
     assert np.all(confidence[frame.max(axis=-1) < 0.99] == 1.0)  # what the frame recorded is never doubted
-    assert "windows in 2 passes" in report["work"] and 0.0 <= report["fallback_fraction"] <= 1.0
+    assert "windows in 4 passes (the frame and its mirror image, each through 2 networks)" in report["work"]
+    assert 0.0 <= report["fallback_fraction"] <= 1.0
     assert result.attributes["fallback_fraction"] == pytest.approx(report["fallback_fraction"], abs=1e-6)
     before = (out / "frame.exr").read_bytes()
     assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(out)]) == 1
@@ -111,11 +112,18 @@ def test_reconstruct_takes_any_tile_and_halo_and_scores_alike(night_frame, tmp_p
     assert abs(scores[0] - scores[1]) < 1.0
 
 
-def test_reconstruct_without_the_mirror_check_runs_one_pass(night_frame, tmp_path, capsys):
-    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path), "--no-mirror-check"]) == 0
+def test_reconstruct_without_the_mirror_check_runs_one_pass_per_network(night_frame, tmp_path, capsys):
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / "pair"),
+                 "--no-mirror-check"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "in 2 passes (through 2 networks)" in report["work"]
+    assert read_exr(tmp_path / "pair" / "frame.exr").attributes["partner"].endswith("simulated-rank1-fast-partner.pt")
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / "one"), "--no-mirror-check",
+                 "--no-partner"]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert "windows" in report["work"] and "passes" not in report["work"]
-    assert np.isfinite(read_exr(tmp_path / "frame.exr").rgb()).all()
+    result = read_exr(tmp_path / "one" / "frame.exr")
+    assert np.isfinite(result.rgb()).all() and result.attributes["partner"] == "none"
 
 
 def test_reconstruct_reads_16_bit_tiff(tmp_path):
@@ -170,7 +178,7 @@ def test_exports_agree_with_the_torch_path(night_frame, tmp_path, capsys):
         scripted = torch.jit.load(str(tmp_path / "net.pt"))(frame)
     assert torch.allclose(scripted, reference, rtol=1e-5, atol=1e-5)
     for checkpoint, name in ((None, "torch"), (tmp_path / "net.onnx", "onnx")):
-        argv = ["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / name)]
+        argv = ["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / name), "--no-partner"]
         assert main(argv + (["--checkpoint", str(checkpoint)] if checkpoint else [])) == 0
     torch_hdr = read_exr(tmp_path / "torch" / "frame.exr").rgb()
     onnx_hdr = read_exr(tmp_path / "onnx" / "frame.exr").rgb()

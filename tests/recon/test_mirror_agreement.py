@@ -76,12 +76,12 @@ def test_reconstruct_keeps_the_minimum_of_the_frame_and_its_mirror_image():
     radius = model.psf.shape[-1] // 2
     direct, _ = reconstruct_frame(model.network, frame, psf_radius_px=radius)
     mirror_pass, _ = reconstruct_frame(model.network, mirrored(frame, "left-right"), psf_radius_px=radius)
-    result = reconstruct(frame, model)
+    result = reconstruct(frame, model, partner=None)  # the shipped network alone (its partner: another test)
     assert result.tiles.passes == 2 and "2 passes" in result.tiles.summary()
     assert np.allclose(result.network_hdr, np.minimum(direct, mirrored(mirror_pass, "left-right")), atol=1e-6)
-    single = reconstruct(frame, model, mirror_check=False)
+    single = reconstruct(frame, model, mirror_check=False, partner=None)
     assert single.tiles.passes == 1 and np.allclose(single.network_hdr, direct, atol=1e-6)
-    one_sided = reconstruct(frame, model, psf=spike_psf((2, 3), size=model.psf.shape[-1]))
+    one_sided = reconstruct(frame, model, psf=spike_psf((2, 3), size=model.psf.shape[-1]), partner=None)
     assert one_sided.tiles.passes == 1
 
 
@@ -105,6 +105,7 @@ def test_network_windows_counts_the_windows_reconstruct_runs():
     lopsided = spike_psf((2, 3), size=model.psf.shape[-1])
     for psf, mirror_check, passes in ((model.psf, True, 2), (model.psf, False, 1), (lopsided, True, 1)):
         progress = _CountingProgress()
-        reconstruct(frame, model, psf=psf, mirror_check=mirror_check, progress=progress, regions=regions)
+        reconstruct(frame, model, psf=psf, mirror_check=mirror_check, progress=progress, regions=regions,
+                    partner=None)
         expected = network_windows(regions, psf, mirror_check=mirror_check)
         assert progress.windows == expected == passes * sum(region.windows for region in regions) > 0

@@ -160,3 +160,48 @@ def test_without_confirming_streaks_only_what_both_paint_is_judged(psf):
     assert np.array_equal(proposal, dim) and np.array_equal(judged, expected)
     assert np.array_equal(confidence, expected_confidence)
     assert report.fallen_back_pixels == expected_report.fallen_back_pixels == int(clipped.any(axis=-1).sum())
+
+
+def test_the_shipped_checkpoint_runs_with_its_partner_by_default(psf):
+    """reconstruct's default partner is NAME-partner.pt beside the model's NAME.pt; None runs the model alone; a
+    model without a checkpoint file beside it (no ``source``) runs alone."""
+    from hdrcam.api import resolve_partner
+    from hdrcam.train.checkpoint import partner_checkpoint
+
+    model = load_model()
+    partner = resolve_partner(model)
+    assert partner.source == partner_checkpoint(SHIPPED_CHECKPOINT) and partner.source.is_file()
+    assert resolve_partner(model, None) is None
+    assert resolve_partner(types.SimpleNamespace(network=Painter(2.0), psf=psf)) is None
+    frame = frame_with_a_window()
+    regions = plan_regions(frame, psf_radius_px=psf.shape[-1] // 2)
+    assert reconstruct(frame, model, regions=regions).tiles.networks == 2
+    assert reconstruct(frame, model, regions=regions, partner=None).tiles.networks == 1
+
+
+def test_a_partner_file_behind_another_psf_beside_a_checkpoint_is_refused(tmp_path, capsys):
+    """A NAME-partner.pt trained behind another PSF than NAME.pt is an input error, before any frame is read."""
+    import shutil
+
+    checkpoint = tmp_path / "model.pt"
+    shutil.copy(SHIPPED_CHECKPOINT, checkpoint)
+    shutil.copy(SHIPPED_CHECKPOINT.parent / "windshield-fast.pt", tmp_path / "model-partner.pt")
+    source = tmp_path / "frame.exr"
+    write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
+    assert main(["reconstruct", str(source), "--checkpoint", str(checkpoint), "--out", str(tmp_path / "out")]) == 1
+    assert "model-partner.pt was trained behind another PSF" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    assert main(["reconstruct", str(source), "--checkpoint", str(checkpoint), "--no-partner",
+                 "--out", str(tmp_path / "out")]) == 0
+
+
+def test_evaluate_scores_each_checkpoint_with_its_partner_unless_told_not_to(tmp_path, capsys):
+    arguments = ["evaluate", "--count", "1", "--size", "64"]
+    assert main(arguments + ["--out", str(tmp_path / "pair")]) == 0
+    assert "Partner networks" in (tmp_path / "pair" / "summary.md").read_text()
+    assert "simulated-rank1-fast-partner.pt" in (tmp_path / "pair" / "summary.md").read_text()
+    assert main(arguments + ["--no-partner", "--out", str(tmp_path / "one")]) == 0
+    assert "Partner networks" not in (tmp_path / "one" / "summary.md").read_text()
+    with pytest.raises(SystemExit) as usage:
+        main(arguments + ["--no-partner", "--partner", str(SHIPPED_CHECKPOINT), "--out", str(tmp_path / "x")])
+    assert usage.value.code == 2 and "not allowed with" in capsys.readouterr().err
