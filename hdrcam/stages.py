@@ -199,25 +199,120 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
              learning_rate: float | None = None, seed: int | None = None, checkpoint_every: int | None = None,
              precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
              vgg_weights: str | Path | None = None, random_vgg: bool = False, device: str = "auto",
-             quiet: bool = False, data_workers: int | None = None) -> dict:
+             quiet: bool = False, data_workers: int | None = None, partner: bool = True) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
-    learning rate (2e-4: the network already works). Writes the run folder ``out``; returns the last logged
-    step."""
-    from hdrcam.errors import InputError
-    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, read_checkpoint
+    learning rate (2e-4: the network already works). Writes the run folder ``out`` (model.pt at the end).
 
+    ``partner`` (default true): when the starting checkpoint NAME.pt has a partner NAME-partner.pt beside it (a
+    second network trained behind the same PSF, which reconstruct runs with it; the shipped checkpoint has one),
+    the partner is fine-tuned next, from its own weights with the same options (PSF, data, steps, batch, crop,
+    learning rate, precision, seed), in the run folder ``out``/partner, and its final network is written
+    atomically to ``out``/model-partner.pt, where reconstruct finds it beside ``out``/model.pt; training takes
+    twice as long. A partner trained behind another PSF than its checkpoint is refused (InputError) before any
+    training; a new run never replaces an existing model-partner.pt or partner run. ``resume`` continues each
+    run folder on its own: a run stopped while its partner trained continues the partner (from step 0 when it
+    had saved no checkpoint yet) without training the finished main network again; give ``partner=False``
+    again to resume a run made without one. Returns the main run's last logged step (losses, seconds; {} when
+    the main run had already finished); :func:`finetuned_partner` names the partner written."""
+    from hdrcam.errors import InputError
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
+    from hdrcam.train.design import RUN_FILES
+
+    out = Path(out)
     start = Path(checkpoint) if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
     if not Path(psf).is_file():
         raise InputError(f"--psf {psf} does not exist")
+    partner_run, partner_model = out / PARTNER_RUN, partner_checkpoint(out / "model.pt")
+    if not resume and (partner_model.exists() or any((partner_run / name).exists() for name in RUN_FILES)):
+        raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()
+    partner_start = None
+    if partner and not partner_resumes:  # checked before any training
+        began = _run_start(out) if resume and not checkpoint else None
+        partner_start = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
-    given = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
-                   checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                   psf=str(psf), init_checkpoint=str(checkpoint) if checkpoint else None)
-    return _train(out, new_run, given, resume=resume, vgg_weights=vgg_weights, random_vgg=random_vgg, device=device,
-                  quiet=quiet, data_workers=data_workers)
+    options = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
+                     checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
+                     psf=str(psf))
+    running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
+               "data_workers": data_workers}
+    last = _train(out, new_run, {**options, **_given(init_checkpoint=str(start) if checkpoint else None)},
+                  resume=resume, **running)
+    if not partner_resumes and partner_start is None:
+        return last
+    new_partner_run = new_run  # unused when the partner's own run continues
+    if partner_start is not None:
+        partner_state = read_checkpoint(partner_start)
+        new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
+                           "init_checkpoint": str(partner_start)}
+        if resume:
+            _forget_unsaved_run(partner_run)
+    given = {**options, **_given(init_checkpoint=str(partner_checkpoint(start)) if checkpoint else None)}
+    _train(partner_run, new_partner_run, given, resume=partner_resumes, **running)
+    if _first_process():  # under torchrun only the first process writes
+        from hdrcam.io.atomic import write_bytes_atomic
+
+        write_bytes_atomic(partner_model, (partner_run / "model.pt").read_bytes(), overwrite=resume)
+    return last
+
+
+PARTNER_RUN = "partner"  # finetune's run folder for the partner network, inside the main run's
+
+
+def finetuned_partner(out: str | Path) -> Path | None:
+    """The partner network a finished :func:`finetune` run in ``out`` wrote: ``out``/model-partner.pt, or None."""
+    from hdrcam.train.checkpoint import partner_checkpoint
+
+    path = partner_checkpoint(Path(out) / "model.pt")
+    return path if path.is_file() and (Path(out) / PARTNER_RUN / "model.pt").is_file() else None
+
+
+def _run_start(out: Path) -> tuple[Path, dict] | None:
+    """The checkpoint (path, state) the finetune run saved in ``out`` started from, None before its first save."""
+    from hdrcam.train.checkpoint import read_checkpoint
+
+    if not (out / "checkpoint.pt").is_file():
+        return None
+    began = read_checkpoint(out / "checkpoint.pt")["config"].get("init_checkpoint")
+    return (Path(began), read_checkpoint(Path(began))) if began else None
+
+
+def _checked_partner(start: Path, state: dict) -> Path | None:
+    """Checkpoint ``start``'s partner file, None when it has none; InputError when it was trained behind another
+    PSF than ``start`` (whose read ``state`` is given)."""
+    from types import SimpleNamespace
+
+    from hdrcam.api import check_partner
+    from hdrcam.train.checkpoint import partner_checkpoint, read_checkpoint
+
+    path = partner_checkpoint(start)
+    if not path.is_file():
+        return None
+    check_partner(SimpleNamespace(psf=state["psf"], source=start),
+                  SimpleNamespace(psf=read_checkpoint(path)["psf"], source=path))
+    return path
+
+
+def _first_process() -> bool:
+    """False in the other processes of a torchrun launch (only the first writes)."""
+    import os
+
+    return os.environ.get("RANK", "0") == "0"
+
+
+def _forget_unsaved_run(folder: Path) -> None:
+    """Remove what a run stopped before its first checkpoint left in ``folder`` (config.json, log.jsonl): it
+    saved no step, so a new run continues it. Every torchrun process calls this; the first one removes."""
+    import torch.distributed as dist
+
+    if _first_process() and not (folder / "checkpoint.pt").exists():
+        for name in ("config.json", "log.jsonl"):
+            (folder / name).unlink(missing_ok=True)
+    if dist.is_available() and dist.is_initialized():
+        dist.barrier()
 
 
 def _given(**fields) -> dict:

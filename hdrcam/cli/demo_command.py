@@ -4,9 +4,11 @@
    camera sees;
 2. capture a PSF calibration bracket of a pinhole array (5 exposures 3 EV apart, plus darks);
 3. fuse it into linear HDR; 4. calibrate the PSF from it;
-5. fine-tune the shipped network on the measured PSF (briefly);
+5. fine-tune the shipped network and its partner (a second network trained behind the same PSF) on the
+   measured PSF (briefly);
 6. capture a night scene through the DOE (1.5 % of the pixels clipped);
-7. reconstruct it with the fine-tuned network, and score the frame and the reconstruction against the truth.
+7. reconstruct it with the fine-tuned network and its partner, and score the frame and the reconstruction
+   against the truth.
 Every step is the same ``hdrcam`` command a user would run; OUT/index.md lists what went where.
 """
 
@@ -25,7 +27,8 @@ def register(commands) -> None:
     parser = commands.add_parser("demo", help="the whole chain on the simulated camera", description=__doc__)
     parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder (default demo-out)")
     parser.add_argument("--finetune-steps", type=int, default=30, metavar="N",
-                        help="fine-tuning steps on the measured PSF; 0 reuses the shipped network (default 30)")
+                        help="fine-tuning steps of each network (the shipped one and its partner) on the measured "
+                             "PSF; 0 reuses the shipped networks (default 30)")
     parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),
                         help="night frame size (default 768 1024)")
     parser.add_argument("--seed", type=int, default=3)
@@ -51,7 +54,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import log_average_luminance, tonemap_rgb
     from hdrcam.limits import check_image_size
-    from hdrcam.train.checkpoint import load_model
+    from hdrcam.train.checkpoint import load_model, partner_checkpoint
     from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL
 
     height, width = arguments.size
@@ -96,7 +99,9 @@ def run(arguments: argparse.Namespace) -> int:
     for name, image in (("truth", truth_rgb), ("ldr", frame_rgb), ("reconstruction", hdr_rgb)):
         write_png(out / f"preview-{name}.png", tonemap_rgb(image, log_average=exposure))
     seconds = round(time.perf_counter() - started, 1)
-    write_text_atomic(out / "index.md", _index(scores, timings, seconds, checkpoint, psf_l1))
+    partner = partner_checkpoint(checkpoint)  # reconstruct ran it with the checkpoint when it exists
+    write_text_atomic(out / "index.md", _index(scores, timings, seconds, checkpoint, psf_l1,
+                                               partner if partner.is_file() else None))
     print(json.dumps({"out": str(out), "seconds": seconds, "step_seconds": timings,
                       "psnr_linear_db": {k: round(v["psnr_linear"], 2) for k, v in scores.items()},
                       "pu21_psnr_db": {k: round(v["pu21_psnr"], 2) for k, v in scores.items()},
@@ -115,13 +120,15 @@ def _psf_l1(measured, design) -> list[float]:
     return [round(float(np.abs(a - b).sum()), 4) for a, b in zip(*crops)]
 
 
-def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1) -> str:
+def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1, partner: Path | None) -> str:
     rows = "\n".join(f"| {name} | {m['psnr_linear']:.2f} | {m['pu21_psnr']:.2f} | {m['psnr_mu']:.2f} |"
                      for name, m in scores.items())
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
+    networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint)"
+                if partner else f"Network: `{checkpoint}`")
     return f"""# hdrcam demo
 
-The whole chain on the simulated camera, {seconds} s in all. Network: `{checkpoint}`.
+The whole chain on the simulated camera, {seconds} s in all. {networks}.
 
 | scored against the truth | PSNR linear (dB, peak 2^8) | PU21-PSNR (dB) | PSNR-mu (dB) |
 |---|---|---|---|
@@ -140,6 +147,7 @@ All three previews share the truth's exposure. The measured PSF (L1 against the 
 
 Where things are: `design-psf.exr` (the PSF of the designed DOE, which the simulated camera sees),
 `1-calibration-bracket/` (RAW frames + bracket.json + darks), `2-calibration-fused.exr`, `3-calibration/`
-(psf.exr, record.json, psf.png), `4-finetune/` (model.pt, log, plots), `5-night-frame.exr` and
-`5-night-truth.exr`, `6-reconstruction/` (HDR EXR with an `unreliable` mask channel, preview PNG).
+(psf.exr, record.json, psf.png), `4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and
+run partner/), `5-night-frame.exr` and `5-night-truth.exr`, `6-reconstruction/` (HDR EXR with an
+`unreliable` mask channel, preview PNG).
 """

@@ -63,15 +63,24 @@ def register(commands) -> None:
 
     finetune = commands.add_parser("finetune", help="fine-tune a network on a measured PSF",
                                    description="Train a checkpoint's network (not its DOE) behind a measured PSF, "
-                                               "e.g. calibration/NAME/psf.exr.")
+                                               "e.g. calibration/NAME/psf.exr, and then its partner network "
+                                               "(see --no-partner).")
     finetune.add_argument("--checkpoint", type=Path, default=None, help="start from this (default: the shipped one)")
     finetune.add_argument("--psf", type=Path, required=True, help="PSF EXR, e.g. calibration/NAME/psf.exr")
+    finetune.add_argument("--no-partner", dest="partner", action="store_false",
+                          help="fine-tune the checkpoint alone. By default, when it has a partner (NAME-partner.pt "
+                               "beside NAME.pt: a second network trained behind the same PSF, which reconstruct "
+                               "runs with it and keeps what both paint; the shipped checkpoint has one), the "
+                               "partner is fine-tuned next with the same options in OUT/partner and written to "
+                               "OUT/model-partner.pt (twice the training time). --resume of a run made with "
+                               "--no-partner needs it again")
     _training_options(finetune, 200)
     finetune.set_defaults(run=run_finetune)
 
 
-def _train(stage, arguments: argparse.Namespace, **fields) -> int:
-    """Run ``stage`` (hdrcam.stages.design or finetune) with the options given; print the run's summary."""
+def _train(stage, arguments: argparse.Namespace, summary=None, **fields) -> int:
+    """Run ``stage`` (hdrcam.stages.design or finetune) with the options given; print the run's summary (plus
+    what ``summary`` returns after the run)."""
     started = time.perf_counter()
     last = stage(out=arguments.out, data=arguments.data, steps=arguments.steps, batch=arguments.batch,
                  crop_px=arguments.crop, learning_rate=arguments.lr, seed=arguments.seed,
@@ -82,7 +91,8 @@ def _train(stage, arguments: argparse.Namespace, **fields) -> int:
     if os.environ.get("RANK", "0") != "0":  # under torchrun only the first process reports
         return 0
     print(json.dumps({"run": str(arguments.out), "model": str(arguments.out / "model.pt"),
-                      "seconds": round(time.perf_counter() - started, 1), "last_step": last}))
+                      **(summary() if summary else {}), "seconds": round(time.perf_counter() - started, 1),
+                      "last_step": last}))
     return 0
 
 
@@ -94,6 +104,12 @@ def run_design(arguments: argparse.Namespace) -> int:
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:
-    from hdrcam.stages import finetune
+    from hdrcam.stages import PARTNER_RUN, finetune, finetuned_partner
 
-    return _train(finetune, arguments, psf=arguments.psf, checkpoint=arguments.checkpoint)
+    def partner_summary() -> dict:
+        """The partner fine-tuned in OUT/partner and where its network was written; null without one."""
+        written = finetuned_partner(arguments.out) if arguments.partner else None
+        return {"partner": {"run": str(arguments.out / PARTNER_RUN), "model": str(written)} if written else None}
+
+    return _train(finetune, arguments, partner_summary, psf=arguments.psf, checkpoint=arguments.checkpoint,
+                  partner=arguments.partner)

@@ -1,0 +1,120 @@
+"""``finetune`` trains a checkpoint's partner (NAME-partner.pt) too: where it goes, --no-partner, a partner
+behind another PSF, and --resume after an interruption while the partner trained."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import torch
+
+from hdrcam.cli import main
+from hdrcam.optics.psf_file import load_psf
+from hdrcam.train import design
+from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint, save_checkpoint
+
+MEASURED_PSF = Path(__file__).resolve().parents[2] / "calibration" / "simulated-rank1" / "psf.exr"  # from calibrate
+TINY = ["--steps", "2", "--crop", "64", "--batch", "1", "--device", "cpu"]
+
+
+def _finetune(out: Path, *options) -> list[str]:
+    return ["finetune", "--psf", str(MEASURED_PSF), *TINY, *options, "--out", str(out)]
+
+
+def _summary(capsys) -> dict:
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def _distance(a: dict, b: dict) -> float:
+    return sum(float((a[key].float() - b[key].float()).norm()) for key in a)
+
+
+@pytest.fixture(scope="module")
+def straight(tmp_path_factory) -> Path:
+    """An uninterrupted finetune of the shipped checkpoint and its partner."""
+    out = tmp_path_factory.mktemp("finetune") / "run"
+    assert main(_finetune(out)) == 0
+    return out
+
+
+def test_finetune_writes_the_model_and_its_partner_behind_the_measured_psf(straight):
+    model, partner = read_checkpoint(straight / "model.pt"), read_checkpoint(straight / "model-partner.pt")
+    measured = load_psf(MEASURED_PSF)
+    for state in (model, partner):
+        assert state["step"] == 2 and state["config"]["psf"] == str(MEASURED_PSF)
+        torch.testing.assert_close(state["psf"].numpy(), measured, rtol=0, atol=1e-6)
+    assert partner["config"]["init_checkpoint"] == str(partner_checkpoint(SHIPPED_CHECKPOINT))
+    assert {key: partner["config"][key] for key in ("steps", "batch", "crop_px", "learning_rate", "seed")} == {
+        key: model["config"][key] for key in ("steps", "batch", "crop_px", "learning_rate", "seed")}
+    shipped_partner = read_checkpoint(partner_checkpoint(SHIPPED_CHECKPOINT))["network"]
+    shipped = read_checkpoint(SHIPPED_CHECKPOINT)["network"]
+    assert _distance(partner["network"], model["network"]) > 0
+    # fine-tuned from the partner's weights, not the main network's
+    assert _distance(partner["network"], shipped_partner) < _distance(partner["network"], shipped) / 10
+    assert (straight / "partner" / "model.pt").read_bytes() == (straight / "model-partner.pt").read_bytes()
+
+
+def test_the_summary_names_the_partner_and_no_partner_trains_none(tmp_path, capsys):
+    out = tmp_path / "alone"
+    assert main(_finetune(out, "--no-partner")) == 0
+    assert _summary(capsys)["partner"] is None
+    assert (out / "model.pt").is_file()
+    assert not (out / "model-partner.pt").exists() and not (out / "partner").exists()
+
+
+def test_a_partner_behind_another_psf_is_refused_before_any_training(tmp_path, capsys):
+    start = tmp_path / "start.pt"
+    shutil.copyfile(SHIPPED_CHECKPOINT, start)
+    state = read_checkpoint(partner_checkpoint(SHIPPED_CHECKPOINT))
+    state["psf"] = state["psf"].flip(-1).flip(-2).roll(3, -1).contiguous()  # another PSF
+    save_checkpoint(partner_checkpoint(start), state)
+    capsys.readouterr()
+    assert main(_finetune(tmp_path / "run", "--checkpoint", str(start))) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "another PSF" in error and "start-partner.pt" in error, error
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("when", ["after its first step", "before its first checkpoint"])
+def test_resume_after_an_interrupted_partner_continues_the_partner(when, straight, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "run"
+    train, steps = design.train, design._train_steps
+
+    def partner_stopped(config, folder, **options):
+        if folder.name == "partner" and when == "after its first step":
+            train(config, folder, **options, stop_after=1)  # saves checkpoint.pt at step 1
+            raise KeyboardInterrupt
+        return train(config, folder, **options)
+
+    def partner_stopped_at_once(config, folder, *arguments):
+        if folder.name == "partner":
+            raise KeyboardInterrupt  # config.json written, no checkpoint yet
+        return steps(config, folder, *arguments)
+
+    monkeypatch.setattr(design, "train", partner_stopped)
+    monkeypatch.setattr(design, "_train_steps", partner_stopped_at_once if when != "after its first step" else steps)
+    assert main(_finetune(out)) == 130
+    assert (out / "model.pt").is_file() and not (out / "model-partner.pt").exists()
+    assert (out / "partner" / "checkpoint.pt").is_file() == (when == "after its first step")
+    main_log = (out / "log.jsonl").read_text()
+
+    calls = []
+    monkeypatch.setattr(design, "train", lambda config, folder, **options: calls.append(
+        (folder.name, options["resume"])) or train(config, folder, **options))
+    monkeypatch.setattr(design, "_train_steps", steps)
+    capsys.readouterr()
+    assert main(_finetune(out, "--resume")) == 0
+    summary = _summary(capsys)
+    assert summary["partner"] == {"run": str(out / "partner"), "model": str(out / "model-partner.pt")}
+    assert calls == [("run", True), ("partner", when == "after its first step")]
+    assert summary["last_step"] == {}  # the main network was not trained again
+    assert (out / "log.jsonl").read_text() == main_log
+    log = [json.loads(line) for line in (out / "partner" / "log.jsonl").read_text().splitlines()]
+    expected = [json.loads(line) for line in (straight / "partner" / "log.jsonl").read_text().splitlines()]
+    assert [line["step"] for line in log] == [1, 2]
+    assert log[-1]["total"] == pytest.approx(expected[-1]["total"], rel=1e-5)  # as if never interrupted
+    resumed, uninterrupted = read_checkpoint(out / "model-partner.pt"), read_checkpoint(straight / "model-partner.pt")
+    assert resumed["step"] == 2
+    assert _distance(resumed["network"], uninterrupted["network"]) < 1e-4
