@@ -94,7 +94,7 @@ class NoiseModel:
 class ConsistencyReport:
     clusters: int
     proposed_excess: float  # sum of the estimate's excess over 1 on clipped channels (relative radiance x pixels)
-    kept_excess: float
+    kept_excess: float  # what the judged estimate keeps of it (after the shape cap)
     clipped_pixels: int
     fallen_back_pixels: int  # clipped pixels that kept less than FALLEN_BACK_SHARE of their proposed excess
     # H x W bool: clipped pixels of the clusters whose streak evidence confirmed the proposal (z >=
@@ -129,7 +129,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool))
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     output = floored.copy()
-    proposed = kept = 0.0
+    proposed = 0.0
     radius = psf.shape[-1] // 2
     outer_px = evidence_outer_px(psf)
     clusters = clipped_clusters(clipped, radius)
@@ -155,8 +155,8 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
         confidence[crop] = np.where(own, np.minimum(confidence[crop], share), confidence[crop])
         proposed += float(excess.sum())
-        kept += float(kept_excess.sum())
     output = _cap_shapes(output, clipped_channels, clipped, confirmed)
+    kept = float(np.where(clipped_channels, output - 1.0, 0.0).sum())  # after the shape cap
     fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back,
                                                  confirmed)

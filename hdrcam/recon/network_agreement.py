@@ -8,8 +8,9 @@ also gives up what the bolder network gets right where the frame does show it (l
 streaks the shipped DOE records clearly). So the judge also runs on each network's own proposal, and a
 cluster of clipped pixels whose streak evidence confirms one network's proposal beyond doubt (the judge's
 ``confirmed`` clusters: evidence z >= STRONG_EVIDENCE_Z and every channel's evidence share >=
-STRONG_EVIDENCE_SHARE) keeps that network's judged result; confirmed in both, the larger per pixel and
-channel. Every other pixel keeps the judged minimum.
+STRONG_EVIDENCE_SHARE) keeps that network's judged result; confirmed in both, the judged cluster that holds
+more light (a whole cluster from one judgement: the frame's bound holds for it). Every other pixel keeps
+the judged minimum.
 
 Measured (dev cases, then under a rule written first) in tools/results/real-data/README.md, "Two networks
 agree unless the frame confirms one".
@@ -20,46 +21,51 @@ from __future__ import annotations
 import numpy as np
 
 from hdrcam.recon.consistency import FALLEN_BACK_SHARE, ConsistencyReport, NoiseModel, make_consistent
-from hdrcam.recon.tiling import CLIP_LEVEL
+from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
 
 
 def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np.ndarray, *, noise: NoiseModel
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ConsistencyReport]:
     """H x W x 3 frame in [0, 1], two networks' H x W x 3 estimates (relative radiance), the (3, k, k) PSF ->
     (the proposal taken per pixel: the minimum, or the confirmed network's estimate; the judged estimate, as
-    :func:`make_consistent` returns it; H x W confidence in [0, 1], that of the network whose judged pixel is
-    the brighter where both are confirmed; the report of what was kept).
+    :func:`make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
 
-    The report counts the proposal and kept excess of the pixels' chosen sources (kept after the shape cap)
-    and, in ``confirmed``, the clipped pixels whose cluster one network's streak evidence confirmed."""
+    Each cluster (hdrcam.recon.tiling.clipped_clusters) is taken whole from one judgement, so the frame's upper
+    bound holds for it as the judge left it: confirmed in one network, that network's; in both, the one whose
+    judged cluster holds more light; else the minimum's. The report counts the proposed and kept excess of
+    the pixels' chosen sources and, in ``confirmed``, the clipped pixels of clusters either network's streak
+    evidence confirmed."""
     agreed = np.minimum(first, second)
-    judged_agreed, confidence_agreed, report_agreed = make_consistent(frame, agreed, psf, noise=noise)
-    judged_first, confidence_first, report_first = make_consistent(frame, first, psf, noise=noise)
-    judged_second, confidence_second, report_second = make_consistent(frame, second, psf, noise=noise)
-    only_first = (report_first.confirmed & ~report_second.confirmed)[..., None]
-    only_second = (report_second.confirmed & ~report_first.confirmed)[..., None]
-    both = (report_first.confirmed & report_second.confirmed)[..., None]
-    first_brighter = (judged_first.sum(axis=-1) >= judged_second.sum(axis=-1))[..., None]
-
-    def chosen(agreed_value, first_value, second_value, *, larger: bool):
-        """Per pixel: the confirmed network's value, the minimum's elsewhere; confirmed in both, the larger
-        (per channel) when ``larger``, else the value of the network whose judged pixel is brighter."""
-        values = [value if value.ndim == 3 else value[..., None] for value in (agreed_value, first_value, second_value)]
-        in_both = np.maximum(values[1], values[2]) if larger else np.where(first_brighter, values[1], values[2])
-        picked = np.where(only_first, values[1], np.where(only_second, values[2], np.where(both, in_both, values[0])))
-        return (picked if agreed_value.ndim == 3 else picked[..., 0]).astype(np.float32)
-
-    proposal = chosen(agreed, first, second, larger=True)
-    judged = chosen(judged_agreed, judged_first, judged_second, larger=True)
-    confidence = chosen(confidence_agreed, confidence_first, confidence_second, larger=False)
+    judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in (agreed, first, second)]
+    proposals = (agreed, first, second)
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
-    confirmed = report_first.confirmed | report_second.confirmed
+    source = np.zeros(frame.shape[:2], np.uint8)  # per pixel: 0 the minimum's judgement, 1 first's, 2 second's
+    first_confirmed, second_confirmed = judgements[1][2].confirmed, judgements[2][2].confirmed
+    for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
+        in_first, in_second = (first_confirmed[crop] & own).any(), (second_confirmed[crop] & own).any()
+        if in_first and in_second:
+            light = [float(np.where(clipped_channels[crop] & own[..., None], judged[crop] - 1.0, 0.0).sum())
+                     for judged, _, _ in judgements[1:]]
+            chosen = 1 if light[0] >= light[1] else 2
+        else:
+            chosen = 1 if in_first else 2 if in_second else 0
+        source[crop][own] = chosen
+
+    def picked(values: list[np.ndarray]) -> np.ndarray:
+        out = values[0].copy()
+        for index in (1, 2):
+            out[source == index] = values[index][source == index]
+        return out.astype(np.float32)
+
+    proposal = picked(list(proposals))
+    judged = picked([judged for judged, _, _ in judgements])
+    confidence = picked([confidence for _, confidence, _ in judgements])
     report = ConsistencyReport(
-        clusters=report_agreed.clusters,
+        clusters=judgements[0][2].clusters,
         proposed_excess=float(np.where(clipped_channels, np.maximum(proposal, 1.0) - 1.0, 0.0).sum()),
         kept_excess=float(np.where(clipped_channels, judged - 1.0, 0.0).sum()),
         clipped_pixels=int(clipped.sum()),
         fallen_back_pixels=int((confidence[clipped] < FALLEN_BACK_SHARE).sum()),
-        confirmed=confirmed)
+        confirmed=first_confirmed | second_confirmed)
     return proposal, judged, confidence, report

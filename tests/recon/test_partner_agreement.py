@@ -127,9 +127,10 @@ def test_a_cluster_the_streaks_confirm_in_one_network_keeps_that_networks_judged
     assert report.confirmed[64, 64] and 0.0 <= report.fallback_fraction < 0.5
 
 
-def test_confirmed_in_both_networks_the_larger_judged_value_is_kept(psf):
-    """The other network proposes a tenth of the lamp's excess: the streaks show at least that much light, so
-    both are confirmed, and the larger judged value (with its network's confidence) is kept, not the minimum."""
+def test_confirmed_in_both_networks_the_cluster_holding_more_light_is_kept_whole(psf):
+    """The other network proposes a tenth of the lamp's excess, or the lamp's light moved from its rim into its
+    core: the streaks confirm both proposals, and the pair keeps the whole cluster from the one judgement that
+    holds more light (never a per-pixel mixture, which the frame's upper bound need not allow)."""
     from hdrcam.recon.consistency import NoiseModel, make_consistent
     from hdrcam.recon.network_agreement import judge_pair
 
@@ -137,13 +138,20 @@ def test_confirmed_in_both_networks_the_larger_judged_value_is_kept(psf):
     clipped = frame >= CLIP_LEVEL
     exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
     dim = np.where(clipped, 1.0 + 0.1 * (exact - 1.0), frame).astype(np.float32)
-    _, judged, confidence, _ = judge_pair(frame, dim, exact, psf, noise=NoiseModel())
-    first, _, report_first = make_consistent(frame, dim, psf, noise=NoiseModel())
-    second, confidence_second, report_second = make_consistent(frame, exact, psf, noise=NoiseModel())
-    both = report_first.confirmed & report_second.confirmed
-    assert both[64, 64] and float(first[64, 64].mean()) < 50.0
-    assert np.array_equal(judged[both], np.maximum(first, second)[both])
-    assert float(judged[64, 64].mean()) >= 0.8 * 400.0 and confidence[64, 64] == confidence_second[64, 64]
+    peaked = exact.copy()
+    peaked[61:68, 61:68] = np.where(clipped[61:68, 61:68], 1.0, peaked[61:68, 61:68])
+    peaked[64, 64] += float((exact[61:68, 61:68] - peaked[61:68, 61:68]).sum(axis=(0, 1)).mean())
+    for other in (dim, peaked):
+        _, judged, confidence, _ = judge_pair(frame, other, exact, psf, noise=NoiseModel())
+        first, first_confidence, report_first = make_consistent(frame, other, psf, noise=NoiseModel())
+        second, second_confidence, report_second = make_consistent(frame, exact, psf, noise=NoiseModel())
+        both = report_first.confirmed & report_second.confirmed
+        assert both[64, 64]
+        light = [float(np.where(clipped & both[..., None], judgement - 1.0, 0.0).sum())
+                 for judgement in (first, second)]
+        kept, kept_confidence = (first, first_confidence) if light[0] >= light[1] else (second, second_confidence)
+        assert np.array_equal(judged[both], kept[both]) and np.array_equal(confidence[both], kept_confidence[both])
+    assert float(judge_pair(frame, dim, exact, psf, noise=NoiseModel())[1][64, 64].mean()) >= 0.8 * 400.0
 
 
 def test_without_confirming_streaks_only_what_both_paint_is_judged(psf):
@@ -189,10 +197,41 @@ def test_a_partner_file_behind_another_psf_beside_a_checkpoint_is_refused(tmp_pa
     source = tmp_path / "frame.exr"
     write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
     assert main(["reconstruct", str(source), "--checkpoint", str(checkpoint), "--out", str(tmp_path / "out")]) == 1
-    assert "model-partner.pt was trained behind another PSF" in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert "model-partner.pt was trained behind another PSF" in error and "--no-partner" in error
+    assert len(error.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
     assert main(["reconstruct", str(source), "--checkpoint", str(checkpoint), "--no-partner",
                  "--out", str(tmp_path / "out")]) == 0
+
+
+def test_evaluate_runs_the_partner_it_is_given(psf):
+    """A partner that paints nothing (every clipped channel at 1) leaves the pair's proposal at most white."""
+    from hdrcam.data.scenes import SceneSource
+    from hdrcam.evaluate.scoring import evaluate_models
+
+    model = load_model()
+    blank = types.SimpleNamespace(network=Painter(1.0), psf=model.psf)
+    scores = {}
+    for name, partner in (("alone", None), ("blank", {"hdrcam": blank})):
+        rows, examples = evaluate_models({"hdrcam": model}, SceneSource("procedural"), size_px=128, count=1,
+                                         partner=partner, examples=1)
+        scores[name] = examples[0].outputs["hdrcam-network"]
+    frame = examples[0].outputs["ldr"]
+    clipped = frame >= CLIP_LEVEL
+    assert clipped.any() and scores["alone"][clipped].max() > 1.5
+    assert scores["blank"][clipped].max() <= 1.0 + 1e-6  # the minimum of a proposal and white
+
+
+def test_the_streak_fit_runs_one_network(tmp_path, capsys):
+    source = tmp_path / "frame.exr"
+    write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
+    assert main(["reconstruct", str(source), "--streak-fit", "--out", str(tmp_path / "fit")]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "networks" not in report["work"] and report["streak_fit"] != "off"
+    assert main(["reconstruct", str(source), "--streak-fit", "--partner", str(SHIPPED_CHECKPOINT),
+                 "--out", str(tmp_path / "both")]) == 1
+    assert "one network" in capsys.readouterr().err and not (tmp_path / "both").exists()
 
 
 def test_evaluate_scores_each_checkpoint_with_its_partner_unless_told_not_to(tmp_path, capsys):
