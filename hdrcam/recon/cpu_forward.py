@@ -16,6 +16,7 @@ a small probe frame fails, :func:`hdr_forward` warns once (one line) and returns
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 import weakref
 from typing import Callable
@@ -29,13 +30,14 @@ PROBE_PX = 32  # side of the random frame each compiled model is checked on agai
 PROBE_TOLERANCE = 1e-3  # relative and absolute tolerance of that check (radiance, 1 = white)
 
 _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network -> its CompiledForward
-# Every OpenVINO compiled model and request made in this process, never released. With them released, the
-# test suite's process died of SIGSEGV (si_code SI_KERNEL, raised on signal delivery rather than by a bad access)
-# when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after tests/cli/test_recon_cli.py had run
-# the two default networks; OpenVINO's CPU plugin calls sigaltstack on the compiling thread (gdb), so a
-# released model apparently leaves that thread's alternate signal stack dangling. Not reproduced outside
-# pytest. A compiled `fast` network holds a few MB; a process compiles one per network it runs.
-_never_released: list = []
+# Every CompiledForward made in this process by (weights digest, threads), never released, so a network loaded
+# again (a checkpoint's partner for each library call) reuses its compiled model. With compiled models
+# released, the test suite's process died of SIGSEGV (si_code SI_KERNEL, raised on signal delivery rather than
+# by a bad access) when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after
+# tests/cli/test_recon_cli.py had run the two default networks; OpenVINO's CPU plugin calls sigaltstack on the
+# compiling thread (gdb), so a released model apparently leaves that thread's alternate signal stack dangling.
+# Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights.
+_by_weights: dict[tuple[str, int], "CompiledForward"] = {}
 
 
 class CompiledForward:
@@ -58,7 +60,6 @@ class CompiledForward:
             "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
             "ENABLE_CPU_PINNING": False})
         self.request = self.compiled.create_infer_request()
-        _never_released.append((self.compiled, self.request))
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
         """Whether the compiled model still runs ``network``'s current weights on ``threads`` threads."""
@@ -115,12 +116,31 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
     forward = _compiled.get(network)
     if forward is not None and forward.built_for(network, threads):
         return forward
-    try:
-        forward = _checked(network, threads)
-    except Exception as error:  # ImportError, the exporter's and OpenVINO's own exception types
-        reason = (str(error).splitlines() or [""])[0]
-        warnings.warn(f"OpenVINO forward unavailable ({type(error).__name__}: {reason}); running the plain "
-                      "PyTorch forward (slower)", stacklevel=2)
-        return _plain(network)
+    key = (_digest(network), threads)
+    forward = _by_weights.get(key)
+    if forward is None:
+        try:
+            forward = _checked(network, threads)
+        except Exception as error:  # ImportError, the exporter's and OpenVINO's own exception types
+            reason = (str(error).splitlines() or [""])[0]
+            warnings.warn(f"OpenVINO forward unavailable ({type(error).__name__}: {reason}); running the plain "
+                          "PyTorch forward (slower)", stacklevel=2)
+            return _plain(network)
+        _by_weights[key] = forward
     _compiled[network] = forward
     return forward
+
+
+def _digest(network: ReconstructionNet) -> str:
+    """SHA-256 of the weights a compiled model depends on (:func:`_weights`: trainable values; the frozen
+    VGG-19's storage identity)."""
+    digest = hashlib.sha256()
+    for key, value in sorted(_weights(network, copy=False).items()):
+        digest.update(key.encode())
+        if isinstance(value, tuple):
+            digest.update(repr(value).encode())
+        else:
+            tensor = value.detach().contiguous().cpu()
+            digest.update(str((tuple(tensor.shape), tensor.dtype)).encode())
+            digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes() if tensor.numel() else b"")
+    return digest.hexdigest()

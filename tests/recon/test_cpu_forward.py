@@ -64,10 +64,22 @@ def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch)
         raise RuntimeError("no compiler here\nsecond line")
 
     monkeypatch.setattr(cpu_forward, "CompiledForward", broken)
+    monkeypatch.setattr(cpu_forward, "_by_weights", {})  # compile anew (the same weights would be reused)
     with pytest.warns(UserWarning, match="OpenVINO forward unavailable .*no compiler here.*plain PyTorch"):
         plain, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
     assert not np.array_equal(plain, frame)
     np.testing.assert_allclose(optimised, plain, rtol=1e-4, atol=1e-4)
+
+
+def test_a_network_loaded_again_reuses_its_compiled_model_and_other_weights_get_their_own():
+    first, again = _trained_like_network(), _trained_like_network()
+    cpu = torch.device("cpu")
+    forward = cpu_forward.hdr_forward(first, cpu, torch.float32)
+    assert isinstance(forward, cpu_forward.CompiledForward)
+    assert cpu_forward.hdr_forward(again, cpu, torch.float32) is forward
+    with torch.no_grad():
+        next(again.parameters()).add_(0.01)
+    assert cpu_forward.hdr_forward(again, cpu, torch.float32) is not forward
 
 
 def test_the_compiled_forward_keeps_the_trainable_weights_and_only_the_identity_of_the_frozen_vgg():
