@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -67,7 +68,8 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint
     is kept (their per-pixel minimum, hdrcam.recon.mirror_agreement; twice the network time); optionally the
     streak fit refits each blob's brightness (hdrcam.recon.highlight_refinement; off by default: it raised
-    highlights past the truth on real photographs); the estimate is then made consistent with the frame -
+    highlights past the truth on real photographs; one network only: with it, partner "auto" means none and
+    a given partner is an InputError); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
     less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6).
@@ -86,7 +88,12 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
     frame = np.clip(frame, 0.0, 1.0)
+    if streak_fit and isinstance(partner, str) and partner == "auto":
+        partner = None  # the streak fit refits one network's proposal
     partner = resolve_partner(model, partner)
+    if streak_fit and partner is not None:
+        raise InputError("the streak fit refits one network's proposal: run it without a partner "
+                         "(--no-partner, partner=None)")
     networks = [model.network] + ([partner.network] if partner is not None else [])
     reports = []
 
@@ -104,19 +111,18 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     tiles = dataclasses.replace(reports[0], networks=len(networks))
     for report in reports[1:]:
         tiles = tiles.with_pass(report)
-    fit_summaries = []
-    if streak_fit:
-        for index, proposal in enumerate(proposals):
-            proposals[index], fit = refine_highlight_amplitudes(frame, proposal, psf, clipped_mask(frame))
-            fit_summaries.append(fit.summary())
     noise = noise or profile_noise(model)
-    if partner is None:
-        network_hdr = proposals[0]
-        consistent, confidence, report = make_consistent(frame, network_hdr, psf, noise=noise)
-    else:
+    if partner is not None:
         network_hdr, consistent, confidence, report = judge_pair(frame, *proposals, psf, noise=noise)
+    else:
+        network_hdr, fit_summary = proposals[0], "off"
+        estimate = network_hdr
+        if streak_fit:
+            estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
+            fit_summary = fit.summary()
+        consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
-    return Reconstruction(hdr, network_hdr, confidence, tiles, report, "; ".join(fit_summaries) or "off")
+    return Reconstruction(hdr, network_hdr, confidence, tiles, report, "off" if partner is not None else fit_summary)
 
 
 def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, partner: bool = False) -> int:
@@ -130,8 +136,6 @@ def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, part
 def load_network_model(path, *, vgg_weights=None):
     """A :class:`hdrcam.train.checkpoint.TrainedModel` from a checkpoint, or from an .onnx file written by
     ``hdrcam export`` (run with onnxruntime)."""
-    from pathlib import Path
-
     from hdrcam.train.checkpoint import TrainedModel, load_model
 
     if path and Path(path).suffix.lower() == ".onnx":
@@ -145,14 +149,27 @@ def load_network_model(path, *, vgg_weights=None):
 def resolve_partner(model, partner="auto", *, vgg_weights=None):
     """:func:`reconstruct`'s ``partner`` -> the model to run beside ``model``, or None: "auto" = the checkpoint
     NAME-partner.pt beside the model's NAME.pt (hdrcam.train.checkpoint.partner_checkpoint) where that file
-    exists, None = none, a model = itself. A partner behind another PSF than the model's is an InputError."""
+    exists, None = none, a checkpoint path = that checkpoint, a model = itself. A partner behind another PSF
+    than the model's, or unreadable, is an InputError (naming --no-partner when it was found beside NAME.pt)."""
     if isinstance(partner, str) and partner == "auto":
         from hdrcam.train.checkpoint import partner_checkpoint
 
         source = getattr(model, "source", None)
         path = partner_checkpoint(source) if source else None
-        partner = load_network_model(path, vgg_weights=vgg_weights) if path and path.is_file() else None
+        if not (path and path.is_file()):
+            return None
+        hint = f" ({path.name} is taken as {Path(source).name}'s partner; --no-partner / partner=None runs it alone)"
+        try:
+            partner = load_network_model(path, vgg_weights=vgg_weights)
+            check_partner(model, partner)
+        except InputError as error:
+            raise InputError(f"{error}{hint}") from error
+        return partner
+    if isinstance(partner, (str, Path)):
+        partner = load_network_model(partner, vgg_weights=vgg_weights)
     if partner is not None:
+        if not (hasattr(partner, "network") and hasattr(partner, "psf")):
+            raise TypeError(f"partner must be 'auto', None, a checkpoint path or a model, got {type(partner).__name__}")
         check_partner(model, partner)
     return partner
 

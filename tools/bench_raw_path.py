@@ -200,7 +200,8 @@ def table(rows: list[dict], arguments, checkpoint: Path, seconds: float) -> str:
              f"evaluate`), checkpoint {checkpoint}"
              f"{' (reconstruct --no-mirror-check)' if arguments.no_mirror_check else ''}"
              f"{f' (reconstruct --partner {arguments.partner})' if arguments.partner else ''}"
-             f"{' (reconstruct --no-partner)' if arguments.no_partner else ''}, "
+             f"{' (reconstruct --no-partner)' if arguments.no_partner else ''}"
+             f"{'' if arguments.partner or arguments.no_partner else ' (with its partner beside it, if any)'}, "
              f"noise seed {arguments.seed}; truth in camera RGB (colour "
              "matrix of the simulated A7 applied), 1.0 = DNG white. PSNR linear, peak 2^8.", "",
              "| photograph | LDR dB | reconstruct dB | gain dB | LDR PU21 | reconstruct PU21 |",

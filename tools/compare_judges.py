@@ -3,7 +3,8 @@
     .venv/bin/python tools/compare_judges.py --checkpoint C --data runs/data/val --data procedural \
         [--judge NAME=MODULE.py ...] --out tools/results/real-data/judges.md
 
-Rows: the network alone; the shipped judge (hdrcam.recon.consistency, what ``reconstruct`` does); the same
+Rows (the checkpoint's network alone, without its partner: the judges are what is compared): the network
+alone; the shipped judge (hdrcam.recon.consistency, what ``reconstruct`` does); the same
 without its evidence step (upper bound only); the shipped judge after the optional streak fit; and any
 alternative judge given as a module file defining ``make_consistent`` with the shipped signature (e.g. an
 earlier version from git: ``git show COMMIT:hdrcam/recon/consistency.py > old.py``). Every row goes through
@@ -84,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             for data, source in sources.items():
                 count = PROCEDURAL_COUNT if source.folder is None else len(source.folder)
                 rows, _ = scoring.evaluate_models({"hdrcam": model}, source, size_px=SIZE_PX, count=count,
-                                                   examples=0)
+                                                   examples=0, partner=None)  # one network: the judges compared
                 results[name][data] = gains_over(rows, "hdrcam")
                 results["network alone"].setdefault(data, gains_over(rows, "hdrcam-network"))
         print(name, {data: round(float(values.mean()), 2) for data, values in results[name].items()}, flush=True)

@@ -34,7 +34,8 @@ def register(commands) -> None:
                         help="run the network on every tile, also far from any clipped pixel")
     parser.add_argument("--streak-fit", action="store_true",
                         help="before the consistency check, refit each clipped blob's brightness to the streaks "
-                             "by least squares (off by default: on real photographs it overshoots, see README)")
+                             "by least squares (off by default: on real photographs it overshoots, see README; one "
+                             "network: no partner)")
     partners = parser.add_mutually_exclusive_group()
     partners.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
                           help="a second network trained for the same PSF: keep only what both paint unless the "
@@ -94,7 +95,7 @@ def run(arguments: argparse.Namespace) -> int:
             planned[same_file_key(path)] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
     model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
-    wanted = None if arguments.no_partner else (
+    wanted = None if arguments.no_partner or (arguments.streak_fit and not arguments.partner) else (
         load_network_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
     partner = resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)  # before any frame is read
     psf = load_psf(arguments.psf) if arguments.psf else model.psf

@@ -57,8 +57,9 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                     partner="auto", progress=None) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
     ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
-    model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner or None."""
-    partners = {label: partner[label] if isinstance(partner, dict) else resolve_partner(model, partner)
+    model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
+    missing: none)."""
+    partners = {label: resolve_partner(model, partner.get(label) if isinstance(partner, dict) else partner)
                 for label, model in models.items()}
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
     captures = {label: OpticalCapture(load_profile(model.profile), psf=capture_psfs[label])

@@ -446,6 +446,21 @@ def test_a_too_bright_lamp_whose_ring_lies_8_px_out_is_lowered_to_the_truth(too_
     assert kept_excess.sum() == pytest.approx(true_excess.sum(), rel=0.05)
 
 
+@pytest.mark.xfail(strict=True, reason="known failure of the judge alone (tools/results/real-data/README.md, 'Where "
+                   "the judge leaks'): the shipped network without its partner paints a window onto an overcast sky "
+                   "up to 14 x white and the frame cannot refute it (-3.07 dB with the mirror agreement); strict, "
+                   "so a fix of the judge shows up as a failure to remove this mark")
+def test_the_judge_alone_does_not_refute_a_window_the_single_network_paints(tmp_path, shared_data):
+    from hdrcam.data.scenes import SceneSource
+    from hdrcam.evaluate.scoring import evaluate_models
+
+    (tmp_path / "photo.hdr").symlink_to(shared_data / "hdr-train" / "3d-demo-data__peppermint_powerplant_1k.hdr")
+    rows, _ = evaluate_models({"hdrcam": load_model()}, SceneSource(tmp_path), size_px=512, count=1, examples=0,
+                              partner=None)
+    psnr_db = {row.method: row.metrics["psnr_linear"] for row in rows}
+    assert psnr_db["hdrcam"] >= psnr_db["ldr"] - 0.3
+
+
 def test_a_real_window_onto_an_overcast_sky_is_not_made_worse_than_the_frame(tmp_path, shared_data):
     """`hdrcam evaluate`'s protocol on one real photograph (a training photograph: the networks saw it). The
     shipped network alone paints the window up to 14 x white and the frame cannot refute it (-8.6 dB; -3.07
