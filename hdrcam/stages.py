@@ -207,12 +207,13 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     ``partner`` (default true): when the starting checkpoint NAME.pt has a partner NAME-partner.pt beside it (a
     second network trained behind the same PSF, which reconstruct runs with it; the shipped checkpoint has one),
     the partner is fine-tuned next, from its own weights with the same options (PSF, data, steps, batch, crop,
-    learning rate, precision, seed), in the run folder ``out``/partner, and its final network is written
-    atomically to ``out``/model-partner.pt, where reconstruct finds it beside ``out``/model.pt; training takes
-    twice as long. A partner trained behind another PSF than its checkpoint is refused (InputError) before any
-    training; a new run never replaces an existing model-partner.pt or partner run. ``resume`` continues each
-    run folder on its own: a run stopped while its partner trained continues the partner (from step 0 when it
-    had saved no checkpoint yet) without training the finished main network again; give ``partner=False``
+    learning rate, precision; seed + 1, so that it draws other batches than its model), in the run folder
+    ``out``/partner, and its final network is written atomically to ``out``/model-partner.pt, where reconstruct
+    finds it beside ``out``/model.pt; training takes twice as long. A partner trained behind another PSF than
+    its checkpoint is refused (InputError) before any training; a new run never replaces an existing
+    model-partner.pt or partner run. ``resume`` continues each run folder on its own: a run stopped while its
+    partner trained continues the partner (from step 0 when it had saved no checkpoint yet) without training
+    the finished main network again; give ``partner=False``
     again to resume a run made without one. Returns the main run's last logged step (losses, seconds; {} when
     the main run had already finished); :func:`finetuned_partner` names the partner written."""
     from hdrcam.errors import InputError
@@ -247,10 +248,11 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     if partner_start is not None:
         partner_state = read_checkpoint(partner_start)
         new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
-                           "init_checkpoint": str(partner_start)}
+                           "init_checkpoint": str(partner_start), "seed": (seed or 0) + 1}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
-    given = {**options, **_given(init_checkpoint=str(partner_checkpoint(start)) if checkpoint else None)}
+    given = {**{field: value for field, value in options.items() if field != "seed"},
+             **_given(init_checkpoint=str(partner_checkpoint(start)) if checkpoint else None)}
     _train(partner_run, new_partner_run, given, resume=partner_resumes, **running)
     if _first_process():  # under torchrun only the first process writes
         from hdrcam.io.atomic import write_bytes_atomic
@@ -352,7 +354,8 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
 
     ``data``: procedural (``count`` seeded night scenes) or a folder of EXR/.hdr photographs; each test image is
     a ``size_px`` crop scaled so 1.5 % of its pixels exceed 1, captured through each checkpoint's PSF (or
-    ``psf``) with noise seed ``seed``, reconstructed by :func:`hdrcam.reconstruct` and scored: linear PSNR
+    ``psf``) with noise seed ``seed``, reconstructed by :func:`hdrcam.reconstruct` (with each checkpoint's
+    partner NAME-partner.pt where it has one, as ``reconstruct`` does) and scored: linear PSNR
     (peak 2^8, dB), PU21 PSNR and PSNR-mu. ``progress``: a tqdm-like object (``update()``) per image. Returns
     the scored rows (also ``ldr`` and ``hdrcnn-blend``) and three examples (images).
     """

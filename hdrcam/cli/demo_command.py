@@ -124,8 +124,8 @@ def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1
     rows = "\n".join(f"| {name} | {m['psnr_linear']:.2f} | {m['pu21_psnr']:.2f} | {m['psnr_mu']:.2f} |"
                      for name, m in scores.items())
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
-    networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint)"
-                if partner else f"Network: `{checkpoint}`")
+    networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint, "
+                "except where the streaks confirm one)" if partner else f"Network: `{checkpoint}`")
     return f"""# hdrcam demo
 
 The whole chain on the simulated camera, {seconds} s in all. {networks}.
