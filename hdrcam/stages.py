@@ -248,7 +248,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     if partner_start is not None:
         partner_state = read_checkpoint(partner_start)
         new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
-                           "init_checkpoint": str(partner_start), "seed": (seed or 0) + 1}  # other batches
+                           "init_checkpoint": str(partner_start), "seed": _run_seed(out, seed) + 1}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
@@ -270,6 +270,16 @@ def finetuned_partner(out: str | Path) -> Path | None:
 
     path = partner_checkpoint(Path(out) / "model.pt")
     return path if path.is_file() and (Path(out) / PARTNER_RUN / "model.pt").is_file() else None
+
+
+def _run_seed(out: Path, seed: int | None) -> int:
+    """The seed of the finetune run in ``out``: ``seed`` when given, else the one its checkpoint saved (0 if none)."""
+    from hdrcam.train.checkpoint import read_checkpoint
+
+    if seed is not None:
+        return seed
+    saved = out / "checkpoint.pt"
+    return int(read_checkpoint(saved)["config"].get("seed", 0)) if saved.is_file() else 0
 
 
 def _run_start(out: Path) -> tuple[Path, dict] | None:

@@ -119,3 +119,23 @@ def test_resume_after_an_interrupted_partner_continues_the_partner(when, straigh
     resumed, uninterrupted = read_checkpoint(out / "model-partner.pt"), read_checkpoint(straight / "model-partner.pt")
     assert resumed["step"] == 2
     assert _distance(resumed["network"], uninterrupted["network"]) < 1e-4
+
+
+def test_a_partner_restarted_on_resume_keeps_the_runs_seed_plus_one(tmp_path, capsys, monkeypatch):
+    """Made with --seed 5 and stopped before the partner saved anything, resumed without --seed: the partner still
+    draws with seed 6 (the run's own seed + 1), not with the default's + 1."""
+    out = tmp_path / "run"
+    steps = design._train_steps
+
+    def partner_stopped_at_once(config, folder, *arguments):
+        if folder.name == "partner":
+            raise KeyboardInterrupt
+        return steps(config, folder, *arguments)
+
+    monkeypatch.setattr(design, "_train_steps", partner_stopped_at_once)
+    assert main(_finetune(out, "--seed", "5")) == 130
+    monkeypatch.setattr(design, "_train_steps", steps)
+    assert main(_finetune(out, "--resume")) == 0
+    capsys.readouterr()
+    assert read_checkpoint(out / "checkpoint.pt")["config"]["seed"] == 5
+    assert read_checkpoint(out / "partner" / "checkpoint.pt")["config"]["seed"] == 6
