@@ -124,8 +124,8 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
     floored = np.where(clipped_channels, np.maximum(estimate, 1.0), frame).astype(np.float32)
-    confidence = np.ones(frame.shape[:2], np.float32)
     if not clipped.any():
+        confidence = np.ones(frame.shape[:2], np.float32)
         return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool))
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     output = floored.copy()
@@ -152,11 +152,13 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         if significance >= STRONG_EVIDENCE_Z and shares.min() >= STRONG_EVIDENCE_SHARE:
             confirmed[crop] |= own
         output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
-        share = np.where(mine & (excess > 0), kept_excess / np.maximum(excess, 1e-12), 1.0).min(axis=-1)
-        confidence[crop] = np.where(own, np.minimum(confidence[crop], share), confidence[crop])
         proposed += float(excess.sum())
     output = _cap_shapes(output, clipped_channels, clipped, confirmed)
-    kept = float(np.where(clipped_channels, output - 1.0, 0.0).sum())  # after the shape cap
+    excess_proposed = np.where(clipped_channels, floored - 1.0, 0.0)
+    excess_kept = np.where(clipped_channels, output - 1.0, 0.0)  # after the shape cap
+    kept = float(excess_kept.sum())
+    share = np.where(excess_proposed > 0, excess_kept / np.maximum(excess_proposed, 1e-12), 1.0).min(axis=-1)
+    confidence = np.where(clipped, np.clip(share, 0.0, 1.0), 1.0).astype(np.float32)
     fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back,
                                                  confirmed)
