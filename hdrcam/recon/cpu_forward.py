@@ -30,14 +30,16 @@ PROBE_PX = 32  # side of the random frame each compiled model is checked on agai
 PROBE_TOLERANCE = 1e-3  # relative and absolute tolerance of that check (radiance, 1 = white)
 
 _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network -> its CompiledForward
-# Every CompiledForward made in this process by (weights digest, threads), never released, so a network loaded
+# The CompiledForward made for each (weights digest, threads), never released, so a network loaded
 # again (a checkpoint's partner for each library call) reuses its compiled model. With compiled models
 # released, the test suite's process died of SIGSEGV (si_code SI_KERNEL, raised on signal delivery rather than
 # by a bad access) when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after
 # tests/cli/test_recon_cli.py had run the two default networks; OpenVINO's CPU plugin calls sigaltstack on the
 # compiling thread (gdb), so a released model apparently leaves that thread's alternate signal stack dangling.
-# Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights.
+# Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights
+# (the paper preset's frozen VGG-19 counts by identity: each load of it compiles anew).
 _by_weights: dict[tuple[str, int], "CompiledForward"] = {}
+_compiled_models: list = []  # every OpenVINO compiled model and request, also those that failed the probe check
 
 
 class CompiledForward:
@@ -60,6 +62,7 @@ class CompiledForward:
             "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
             "ENABLE_CPU_PINNING": False})
         self.request = self.compiled.create_infer_request()
+        _compiled_models.append((self.compiled, self.request))  # never released (see _by_weights)
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
         """Whether the compiled model still runs ``network``'s current weights on ``threads`` threads."""
