@@ -94,6 +94,8 @@ def run(arguments: argparse.Namespace) -> int:
                                  "rename one of them")
             planned[same_file_key(path)] = source
             check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
+    if arguments.streak_fit and arguments.partner:
+        raise InputError("--streak-fit refits one network's proposal: leave out --partner")
     model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     wanted = None if arguments.no_partner or (arguments.streak_fit and not arguments.partner) else (
         load_network_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")

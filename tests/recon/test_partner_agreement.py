@@ -151,6 +151,8 @@ def test_confirmed_in_both_networks_the_cluster_holding_more_light_is_kept_whole
                  for judgement in (first, second)]
         kept, kept_confidence = (first, first_confidence) if light[0] >= light[1] else (second, second_confidence)
         assert np.array_equal(judged[both], kept[both]) and np.array_equal(confidence[both], kept_confidence[both])
+        swapped = judge_pair(frame, exact, other, psf, noise=NoiseModel())  # the rule, not the argument order
+        assert np.array_equal(swapped[1], judged) and np.array_equal(swapped[2], confidence)
     assert float(judge_pair(frame, dim, exact, psf, noise=NoiseModel())[1][64, 64].mean()) >= 0.8 * 400.0
 
 
