@@ -30,7 +30,7 @@ PROBE_PX = 32  # side of the random frame each compiled model is checked on agai
 PROBE_TOLERANCE = 1e-3  # relative and absolute tolerance of that check (radiance, 1 = white)
 
 _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network -> its CompiledForward
-# The CompiledForward made for each (weights digest, threads), never released, so a network loaded
+# The OpenVINO model compiled for each (weights digest, threads), never released, so a network loaded
 # again (a checkpoint's partner for each library call) reuses its compiled model. With compiled models
 # released, the test suite's process died of SIGSEGV (si_code SI_KERNEL, raised on signal delivery rather than
 # by a bad access) when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after
@@ -38,8 +38,8 @@ _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network ->
 # compiling thread (gdb), so a released model apparently leaves that thread's alternate signal stack dangling.
 # Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights
 # (the paper preset's frozen VGG-19 counts by identity: each load of it compiles anew).
-_by_weights: dict[tuple[str, int], "CompiledForward"] = {}
-_compiled_models: list = []  # every OpenVINO compiled model and request, also those that failed the probe check
+_by_weights: dict[tuple[str, int], object] = {}
+_compiled_models: list = []  # every OpenVINO model compiled here, also those that failed the probe check
 
 
 class CompiledForward:
@@ -49,20 +49,24 @@ class CompiledForward:
     Calling it maps an LDR frame (N, 3, H, W) float32 in [0, 1] to the HDR estimate (N, 3, H, W), relative
     radiance (1.0 = sensor white); H and W are free (multiples of 16, as for the network)."""
 
-    def __init__(self, network: ReconstructionNet, threads: int):
-        import openvino
-
-        from hdrcam.recon.export import onnx_bytes
-
+    def __init__(self, network: ReconstructionNet, threads: int, compiled=None):
+        """``compiled``: an OpenVINO model already compiled from these weights on ``threads`` threads (it gets
+        a request of its own: one request must not run on two threads at once), else it is compiled here."""
         self.threads = threads
         self.weights = _weights(network)
-        core = openvino.Core()
-        # threads not pinned to cores: as fast on an idle CPU, less slowed when other processes share the cores
-        self.compiled = core.compile_model(core.read_model(onnx_bytes(network)), "CPU", {
-            "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
-            "ENABLE_CPU_PINNING": False})
+        if compiled is None:
+            import openvino
+
+            from hdrcam.recon.export import onnx_bytes
+
+            core = openvino.Core()
+            # threads not pinned to cores: as fast on an idle CPU, less slowed when other processes share the cores
+            compiled = core.compile_model(core.read_model(onnx_bytes(network)), "CPU", {
+                "INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
+                "ENABLE_CPU_PINNING": False})
+            _compiled_models.append(compiled)  # never released (see _by_weights)
+        self.compiled = compiled
         self.request = self.compiled.create_infer_request()
-        _compiled_models.append((self.compiled, self.request))  # never released (see _by_weights)
 
     def built_for(self, network: ReconstructionNet, threads: int) -> bool:
         """Whether the compiled model still runs ``network``'s current weights on ``threads`` threads."""
@@ -120,8 +124,9 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
     if forward is not None and forward.built_for(network, threads):
         return forward
     key = (_digest(network), threads)
-    forward = _by_weights.get(key)
-    if forward is None:
+    if key in _by_weights:  # these weights compiled and checked before: a request of this network's own
+        forward = CompiledForward(network, threads, _by_weights[key])
+    else:
         try:
             forward = _checked(network, threads)
         except Exception as error:  # ImportError, the exporter's and OpenVINO's own exception types
@@ -129,7 +134,7 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
             warnings.warn(f"OpenVINO forward unavailable ({type(error).__name__}: {reason}); running the plain "
                           "PyTorch forward (slower)", stacklevel=2)
             return _plain(network)
-        _by_weights[key] = forward
+        _by_weights[key] = forward.compiled
     _compiled[network] = forward
     return forward
 

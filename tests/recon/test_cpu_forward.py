@@ -76,10 +76,13 @@ def test_a_network_loaded_again_reuses_its_compiled_model_and_other_weights_get_
     cpu = torch.device("cpu")
     forward = cpu_forward.hdr_forward(first, cpu, torch.float32)
     assert isinstance(forward, cpu_forward.CompiledForward)
-    assert cpu_forward.hdr_forward(again, cpu, torch.float32) is forward
+    reused = cpu_forward.hdr_forward(again, cpu, torch.float32)
+    assert reused.compiled is forward.compiled and reused.request is not forward.request  # a request per network
+    frame = torch.rand(1, 3, 32, 32, generator=torch.Generator().manual_seed(1))
+    assert torch.equal(reused(frame), forward(frame))
     with torch.no_grad():
         next(again.parameters()).add_(0.01)
-    assert cpu_forward.hdr_forward(again, cpu, torch.float32) is not forward
+    assert cpu_forward.hdr_forward(again, cpu, torch.float32).compiled is not forward.compiled
 
 
 def test_the_compiled_forward_keeps_the_trainable_weights_and_only_the_identity_of_the_frozen_vgg():
