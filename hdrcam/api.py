@@ -112,17 +112,17 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     for report in reports[1:]:
         tiles = tiles.with_pass(report)
     noise = noise or profile_noise(model)
+    fit_summary = "off"
     if partner is not None:
         network_hdr, consistent, confidence, report = judge_pair(frame, *proposals, psf, noise=noise)
     else:
-        network_hdr, fit_summary = proposals[0], "off"
-        estimate = network_hdr
+        network_hdr = estimate = proposals[0]
         if streak_fit:
             estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
             fit_summary = fit.summary()
         consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
-    return Reconstruction(hdr, network_hdr, confidence, tiles, report, "off" if partner is not None else fit_summary)
+    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
 
 
 def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, partner: bool = False) -> int:

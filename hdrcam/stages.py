@@ -213,9 +213,9 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     its checkpoint is refused (InputError) before any training; a new run never replaces an existing
     model-partner.pt or partner run. ``resume`` continues each run folder on its own: a run stopped while its
     partner trained continues the partner (from step 0 when it had saved no checkpoint yet) without training
-    the finished main network again; give ``partner=False``
-    again to resume a run made without one. Returns the main run's last logged step (losses, seconds; {} when
-    the main run had already finished); :func:`finetuned_partner` names the partner written."""
+    the finished main network again; give ``partner=False`` again to resume a run made without one. Returns
+    the main run's last logged step (losses, seconds; {} when the main run had already finished);
+    :func:`finetuned_partner` names the partner written."""
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
     from hdrcam.train.design import RUN_FILES
@@ -229,10 +229,10 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     if not resume and (partner_model.exists() or any((partner_run / name).exists() for name in RUN_FILES)):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()
-    partner_start = None
+    partner_start = partner_state = None
     if partner and not partner_resumes:  # checked before any training
         began = _run_start(out) if resume and not checkpoint else None
-        partner_start = _checked_partner(*(began or (start, state)))
+        partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
     options = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
@@ -246,7 +246,6 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         return last
     new_partner_run = new_run  # unused when the partner's own run continues
     if partner_start is not None:
-        partner_state = read_checkpoint(partner_start)
         new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
                            "init_checkpoint": str(partner_start), "seed": _run_seed(out, seed) + 1}  # other batches
         if resume:
@@ -292,9 +291,9 @@ def _run_start(out: Path) -> tuple[Path, dict] | None:
     return (Path(began), read_checkpoint(Path(began))) if began else None
 
 
-def _checked_partner(start: Path, state: dict) -> Path | None:
-    """Checkpoint ``start``'s partner file, None when it has none; InputError when it was trained behind another
-    PSF than ``start`` (whose read ``state`` is given)."""
+def _checked_partner(start: Path, state: dict) -> tuple[Path | None, dict | None]:
+    """Checkpoint ``start``'s partner file and its read state, (None, None) when it has none; InputError when it
+    was trained behind another PSF than ``start`` (whose read ``state`` is given)."""
     from types import SimpleNamespace
 
     from hdrcam.api import check_partner
@@ -302,10 +301,11 @@ def _checked_partner(start: Path, state: dict) -> Path | None:
 
     path = partner_checkpoint(start)
     if not path.is_file():
-        return None
+        return None, None
+    partner_state = read_checkpoint(path)
     check_partner(SimpleNamespace(psf=state["psf"], source=start),
-                  SimpleNamespace(psf=read_checkpoint(path)["psf"], source=path))
-    return path
+                  SimpleNamespace(psf=partner_state["psf"], source=path))
+    return path, partner_state
 
 
 def _first_process() -> bool:

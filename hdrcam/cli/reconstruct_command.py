@@ -97,8 +97,7 @@ def run(arguments: argparse.Namespace) -> int:
     if arguments.streak_fit and arguments.partner:
         raise InputError("--streak-fit refits one network's proposal: leave out --partner")
     model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
-    wanted = None if arguments.no_partner or (arguments.streak_fit and not arguments.partner) else (
-        load_network_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
+    wanted = None if arguments.no_partner or arguments.streak_fit else arguments.partner or "auto"
     partner = resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)  # before any frame is read
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px

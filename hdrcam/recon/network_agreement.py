@@ -35,9 +35,8 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
     judged cluster holds more light; else the minimum's. The report counts the proposed and kept excess of
     the pixels' chosen sources and, in ``confirmed``, the clipped pixels of clusters either network's streak
     evidence confirmed."""
-    agreed = np.minimum(first, second)
-    judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in (agreed, first, second)]
-    proposals = (agreed, first, second)
+    proposals = [np.minimum(first, second), first, second]  # indices 0, 1, 2 of ``source`` below
+    judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in proposals]
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
     source = np.zeros(frame.shape[:2], np.uint8)  # per pixel: 0 the minimum's judgement, 1 first's, 2 second's
@@ -58,7 +57,7 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
             out[source == index] = values[index][source == index]
         return out.astype(np.float32)
 
-    proposal = picked(list(proposals))
+    proposal = picked(proposals)
     judged = picked([judged for judged, _, _ in judgements])
     confidence = picked([confidence for _, confidence, _ in judgements])
     report = ConsistencyReport(
