@@ -297,14 +297,19 @@ def _checked_partner(start: Path, state: dict) -> tuple[Path | None, dict | None
     from types import SimpleNamespace
 
     from hdrcam.api import check_partner
+    from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import partner_checkpoint, read_checkpoint
 
     path = partner_checkpoint(start)
     if not path.is_file():
         return None, None
-    partner_state = read_checkpoint(path)
-    check_partner(SimpleNamespace(psf=state["psf"], source=start),
-                  SimpleNamespace(psf=partner_state["psf"], source=path))
+    try:
+        partner_state = read_checkpoint(path)
+        check_partner(SimpleNamespace(psf=state["psf"], source=start),
+                      SimpleNamespace(psf=partner_state["psf"], source=path))
+    except InputError as error:
+        raise InputError(f"{error} ({path.name} is taken as {start.name}'s partner; --no-partner fine-tunes it "
+                         "alone)") from error
     return path, partner_state
 
 

@@ -75,6 +75,7 @@ def test_a_partner_behind_another_psf_is_refused_before_any_training(tmp_path, c
     assert main(_finetune(tmp_path / "run", "--checkpoint", str(start))) == 1
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "another PSF" in error and "start-partner.pt" in error, error
+    assert "--no-partner" in error
     assert not (tmp_path / "run").exists()
 
 
