@@ -7,10 +7,14 @@ only take that excess down, never up, so the result is never brighter than the p
 
 - Floor. A clipped channel's radiance is at least the clip level: the estimate there is max(estimate, 1)
   (a network may say 0.06 where the sensor recorded white); channels that did not clip keep the frame.
-- Upper bound, per unclipped pixel. The scene under the streaks is non-negative and a clipped pixel is at
-  least 1, so the re-imaged excess may add at most what the frame recorded beyond the clipped pixels' own
-  light: (P * E)(x) <= y(x) - (P * 1_C)(x) + K_SIGMA sigma(y(x)) + TOLERANCE, sigma from the camera's shot
-  and read noise (relative units, 1 = full well). Applied locally first, so that a wrong edge does not dim a
+- Upper bound, per unclipped pixel. The scene under the streaks is non-negative, so the re-imaged excess may
+  add at most what the frame recorded beyond the clipped pixels' own light up to the clip level:
+  (P * E)(x) <= y(x) - (P * B)(x) + K_SIGMA sigma(y(x)) + TOLERANCE, B = min(estimate, 1) on clipped channels
+  (0 elsewhere), sigma from the camera's shot and read noise (relative units, 1 = full well). B is the
+  estimate's, not 1: a pixel next to a lamp clips from the lamp's spill alone while its own radiance is far
+  below 1 (a 3 x 3 lamp at 200 x white clips 77 pixels, 68 of them dimmer than white), and charging those at 1
+  cut an exactly proposed lamp to 0.63-0.85 of its light (tests/recon/test_do_no_harm.py; README of
+  tools/results/real-data, "The clipped pixels' own light"). Applied locally first, so that a wrong edge does not dim a
   right core: each clipped pixel's excess is multiplied by the smallest headroom min(1, slack / (P * E))
   of the unclipped pixels within LOCAL_BOUND_PX of it, LOCAL_BOUND_ITERATIONS rounds; then one scale per
   cluster and channel makes the bound hold exactly. The window holds the shipped DOE's ring (3-4 px out; a
@@ -26,8 +30,8 @@ only take that excess down, never up, so the result is never brighter than the p
 - Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
   excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with
-  A(v) = v - P * (v 1_U) (U: unclipped), A(y - P * 1_C) = A(P * H_U) + A(P * E) exactly. On the unclipped
-  pixels EVIDENCE_INNER_PX..evidence_outer_px(PSF) from the cluster, A(y - P * 1_C) is fitted by
+  A(v) = v - P * (v 1_U) (U: unclipped), A(y - P * B) = A(P * H_U) + A(P * E) where B is right. On the unclipped
+  pixels EVIDENCE_INNER_PX..evidence_outer_px(PSF) from the cluster, A(y - P * B) is fitted by
   a A(P * E_proposed) + b A(P * D) + c, D = the most light the unclipped edge band can hide (y (1/P0 - 1),
   P0 the PSF's centre value), least squares. The kept share is a, shrunk by its significance z (residual
   variance, at least the noise's, x TEXTURE_CORRELATION): a (1 - (Z_MIN / z)^2) for z > Z_MIN, else 0 -
@@ -124,6 +128,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
     floored = np.where(clipped_channels, np.maximum(estimate, 1.0), frame).astype(np.float32)
+    own_light = np.where(clipped_channels, np.clip(estimate, 0.0, 1.0), 0.0).astype(np.float32)  # B, module doc
     if not clipped.any():
         confidence = np.ones(frame.shape[:2], np.float32)
         return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool))
@@ -139,7 +144,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         excess = np.where(mine, floored[crop] - 1.0, 0.0).astype(np.float32)
         region, inner = _grown(crop, 2 * radius, frame.shape[:2])  # light from two PSF radii away can matter
         unclipped = ~clipped_channels[region]
-        explained = frame[region] - _convolve(clipped_channels[region].astype(np.float32), kernel)  # y - P 1_C
+        explained = frame[region] - _convolve(own_light[region], kernel)  # y - P * B
         slack = explained[inner] + K_SIGMA * noise.sigma(frame[crop]) + TOLERANCE
         spill = np.zeros_like(explained)
         kept_excess, spill[inner] = _bounded_excess(slack, unclipped[inner], excess, kernel)
@@ -224,7 +229,7 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
                      own: np.ndarray, sigma: np.ndarray, outer_px: int) -> tuple[np.ndarray, float]:
     """(3,) shares in [0, 1] of a cluster's excess that the light beyond its lens core supports (module
     docstring, "Evidence"), and the largest of the channels' significances z (-inf where no channel was fitted):
-    ``observed`` = A(y - P 1_C), ``predicted`` = A(P * E), ``nuisance`` = A(P * D), H x W x 3 each on the
+    ``observed`` = A(y - P * B), ``predicted`` = A(P * E), ``nuisance`` = A(P * D), H x W x 3 each on the
     cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..``outer_px`` from ``own`` (the cluster's
     clipped pixels). ``sigma``: the frame's noise there."""
     inner = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
