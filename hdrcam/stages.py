@@ -230,8 +230,9 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()
     partner_start = partner_state = None
+    saved = _saved_config(out) if partner and not partner_resumes and resume else None  # the run's, before this call
     if partner and not partner_resumes:  # checked before any training
-        began = _run_start(out) if resume and not checkpoint else None
+        began = _run_start(saved) if not checkpoint else None
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
@@ -247,13 +248,14 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     new_partner_run = new_run  # unused when the partner's own run continues
     if partner_start is not None:
         new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
-                           "init_checkpoint": str(partner_start), "seed": _run_seed(out, seed) + 1}  # other batches
+                           "init_checkpoint": str(partner_start),
+                           "seed": (seed if seed is not None else (saved or {}).get("seed", 0)) + 1}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
              **_given(init_checkpoint=str(partner_checkpoint(start)) if checkpoint else None)}
     _train(partner_run, new_partner_run, given, resume=partner_resumes, **running)
-    if _first_process():  # under torchrun only the first process writes
+    if first_process():  # under torchrun only the first process writes
         from hdrcam.io.atomic import write_bytes_atomic
 
         write_bytes_atomic(partner_model, (partner_run / "model.pt").read_bytes(), overwrite=resume)
@@ -271,23 +273,20 @@ def finetuned_partner(out: str | Path) -> Path | None:
     return path if path.is_file() and (Path(out) / PARTNER_RUN / "model.pt").is_file() else None
 
 
-def _run_seed(out: Path, seed: int | None) -> int:
-    """The seed of the finetune run in ``out``: ``seed`` when given, else the one its checkpoint saved (0 if none)."""
+def _saved_config(out: Path) -> dict | None:
+    """The config the run in ``out`` saved with its checkpoint, None before its first save."""
     from hdrcam.train.checkpoint import read_checkpoint
 
-    if seed is not None:
-        return seed
     saved = out / "checkpoint.pt"
-    return int(read_checkpoint(saved)["config"].get("seed", 0)) if saved.is_file() else 0
+    return read_checkpoint(saved)["config"] if saved.is_file() else None
 
 
-def _run_start(out: Path) -> tuple[Path, dict] | None:
-    """The checkpoint (path, state) the finetune run saved in ``out`` started from, None before its first save."""
+def _run_start(saved: dict | None) -> tuple[Path, dict] | None:
+    """The checkpoint (path, state) a finetune run whose saved config is ``saved`` started from, None before its
+    first save."""
     from hdrcam.train.checkpoint import read_checkpoint
 
-    if not (out / "checkpoint.pt").is_file():
-        return None
-    began = read_checkpoint(out / "checkpoint.pt")["config"].get("init_checkpoint")
+    began = (saved or {}).get("init_checkpoint")
     return (Path(began), read_checkpoint(Path(began))) if began else None
 
 
@@ -313,8 +312,8 @@ def _checked_partner(start: Path, state: dict) -> tuple[Path | None, dict | None
     return path, partner_state
 
 
-def _first_process() -> bool:
-    """False in the other processes of a torchrun launch (only the first writes)."""
+def first_process() -> bool:
+    """False in the other processes of a torchrun launch (only the first writes files and reports)."""
     import os
 
     return os.environ.get("RANK", "0") == "0"
@@ -325,7 +324,7 @@ def _forget_unsaved_run(folder: Path) -> None:
     saved no step, so a new run continues it. Every torchrun process calls this; the first one removes."""
     import torch.distributed as dist
 
-    if _first_process() and not (folder / "checkpoint.pt").exists():
+    if first_process() and not (folder / "checkpoint.pt").exists():
         for name in ("config.json", "log.jsonl"):
             (folder / name).unlink(missing_ok=True)
     if dist.is_available() and dist.is_initialized():

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from pathlib import Path
 
@@ -88,7 +87,9 @@ def _train(stage, arguments: argparse.Namespace, summary=None, **fields) -> int:
                  channels_last=arguments.channels_last, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
                  random_vgg=arguments.random_vgg, device=arguments.device, data_workers=arguments.data_workers,
                  **fields)
-    if os.environ.get("RANK", "0") != "0":  # under torchrun only the first process reports
+    from hdrcam.stages import first_process
+
+    if not first_process():  # under torchrun only the first process reports
         return 0
     print(json.dumps({"run": str(arguments.out), "model": str(arguments.out / "model.pt"),
                       **(summary() if summary else {}), "seconds": round(time.perf_counter() - started, 1),
