@@ -104,6 +104,9 @@ class ConsistencyReport:
     # H x W bool: clipped pixels of the clusters whose streak evidence confirmed the proposal (z >=
     # STRONG_EVIDENCE_Z, shares >= STRONG_EVIDENCE_SHARE: exempt from the shape cap); None where not recorded
     confirmed: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
+    # H x W bool: clipped pixels of the clusters whose streaks show their proposed light beyond doubt (z >=
+    # STRONG_EVIDENCE_Z in some channel), whatever share of it the evidence kept; None where not recorded
+    strong_evidence: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def fallback_fraction(self) -> float:
@@ -131,14 +134,16 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     own_light = np.where(clipped_channels, np.clip(estimate, 0.0, 1.0), 0.0).astype(np.float32)  # B, module doc
     if not clipped.any():
         confidence = np.ones(frame.shape[:2], np.float32)
-        return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool))
+        return floored, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool),
+                                                      np.zeros(clipped.shape, bool))
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     output = floored.copy()
     proposed = 0.0
     radius = psf.shape[-1] // 2
     outer_px = evidence_outer_px(psf)
     clusters = clipped_clusters(clipped, radius)
-    confirmed = np.zeros(clipped.shape, bool)  # clipped pixels of clusters with strong evidence: shape kept
+    strong = np.zeros(clipped.shape, bool)  # clipped pixels of clusters with strong evidence
+    confirmed = np.zeros(clipped.shape, bool)  # ... that also confirms the amount: shape kept
     for crop, own in clusters:
         mine = clipped_channels[crop] & own[..., None]
         excess = np.where(mine, floored[crop] - 1.0, 0.0).astype(np.float32)
@@ -154,8 +159,10 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
                                                 _beyond_reimaged(band, unclipped, kernel)[inner],
                                                 unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
         kept_excess = kept_excess * shares
-        if significance >= STRONG_EVIDENCE_Z and shares.min() >= STRONG_EVIDENCE_SHARE:
-            confirmed[crop] |= own
+        if significance >= STRONG_EVIDENCE_Z:
+            strong[crop] |= own
+            if shares.min() >= STRONG_EVIDENCE_SHARE:
+                confirmed[crop] |= own
         output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
         proposed += float(excess.sum())
     output = _cap_shapes(output, clipped_channels, clipped, confirmed)
@@ -166,7 +173,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     confidence = np.where(clipped, np.clip(share, 0.0, 1.0), 1.0).astype(np.float32)
     fallen_back = int((confidence[clipped] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back,
-                                                 confirmed)
+                                                 confirmed, strong)
 
 
 def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor

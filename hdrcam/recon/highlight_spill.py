@@ -34,7 +34,8 @@ def subtract_highlight_spill(frame: np.ndarray, hdr: np.ndarray, psf: np.ndarray
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     spill = np.zeros_like(output)
     for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
-        highlights = np.where(own[..., None], np.clip(hdr[crop] - 1.0, 0.0, None), 0.0).astype(np.float32).transpose(2, 0, 1)
+        highlights = np.where(own[..., None], np.clip(hdr[crop] - 1.0, 0.0, None), 0.0)
+        highlights = highlights.astype(np.float32).transpose(2, 0, 1)
         spilled = fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel)
         spill[crop] += spilled.numpy().transpose(1, 2, 0)
     return np.where(clipped[..., None], hdr, np.clip(output - spill, 0.0, None)).astype(np.float32)

@@ -6,11 +6,13 @@ trained networks seldom paint the same wrong light: their per-pixel, per-channel
 paint, and the judge (:func:`hdrcam.recon.consistency.make_consistent`) bounds it by the frame. The minimum
 also gives up what the bolder network gets right where the frame does show it (lamps at night, whose
 streaks the shipped DOE records clearly). So the judge also runs on each network's own proposal, and a
-cluster of clipped pixels whose streak evidence confirms one network's proposal beyond doubt (the judge's
-``confirmed`` clusters: evidence z >= STRONG_EVIDENCE_Z and every channel's evidence share >=
-STRONG_EVIDENCE_SHARE) keeps that network's judged result; confirmed in both, the judged cluster that holds
-more light (a whole cluster from one judgement: the frame's bound holds for it). Every other pixel keeps
-the judged minimum.
+cluster of clipped pixels whose streaks show one network's proposed light beyond doubt (the judge's
+``strong_evidence`` clusters: evidence z >= STRONG_EVIDENCE_Z in some channel) keeps that network's judged
+result - the amount is the judgement's (each channel already scaled by its evidence share), so the share
+need not reach STRONG_EVIDENCE_SHARE as it must for the shape cap's exemption (requiring it left lamps whose
+blue streaks kept 0.6-0.8 to the minimum: night dev scenes -0.5 dB); strong in both, the judged cluster that
+holds more light (a whole cluster from one judgement: the frame's bound holds for it). Every other pixel
+keeps the judged minimum.
 
 Measured (dev cases, then under a rule written first) in tools/results/real-data/README.md, "Two networks
 agree unless the frame confirms one".
@@ -27,22 +29,22 @@ from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
 def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np.ndarray, *, noise: NoiseModel
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ConsistencyReport]:
     """H x W x 3 frame in [0, 1], two networks' H x W x 3 estimates (relative radiance), the (3, k, k) PSF ->
-    (the proposal taken per pixel: the minimum, or the confirmed network's estimate; the judged estimate, as
-    :func:`make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
+    (the proposal taken per pixel: the minimum, or the estimate of the network the streaks bear out; the judged
+    estimate, as :func:`make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
 
     Each cluster (hdrcam.recon.tiling.clipped_clusters) is taken whole from one judgement, so the frame's upper
-    bound holds for it as the judge left it: confirmed in one network, that network's; in both, the one whose
-    judged cluster holds more light; else the minimum's. The report counts the proposed and kept excess of
-    the pixels' chosen sources and, in ``confirmed``, the clipped pixels of clusters either network's streak
-    evidence confirmed."""
+    bound holds for it as the judge left it: strong streak evidence for one network's proposal, that
+    network's; for both, the one whose judged cluster holds more light; else the minimum's. The report counts
+    the proposed and kept excess of the pixels' chosen sources; its ``confirmed`` and ``strong_evidence``
+    masks are the union of the two networks'."""
     proposals = [np.minimum(first, second), first, second]  # indices 0, 1, 2 of ``source`` below
     judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in proposals]
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
     source = np.zeros(frame.shape[:2], np.uint8)  # per pixel: 0 the minimum's judgement, 1 first's, 2 second's
-    first_confirmed, second_confirmed = judgements[1][2].confirmed, judgements[2][2].confirmed
+    first_strong, second_strong = judgements[1][2].strong_evidence, judgements[2][2].strong_evidence
     for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
-        in_first, in_second = (first_confirmed[crop] & own).any(), (second_confirmed[crop] & own).any()
+        in_first, in_second = (first_strong[crop] & own).any(), (second_strong[crop] & own).any()
         if in_first and in_second:
             light = [float(np.where(clipped_channels[crop] & own[..., None], judged[crop] - 1.0, 0.0).sum())
                      for judged, _, _ in judgements[1:]]
@@ -66,5 +68,6 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
         kept_excess=float(np.where(clipped_channels, judged - 1.0, 0.0).sum()),
         clipped_pixels=int(clipped.sum()),
         fallen_back_pixels=int((confidence[clipped] < FALLEN_BACK_SHARE).sum()),
-        confirmed=first_confirmed | second_confirmed)
+        confirmed=judgements[1][2].confirmed | judgements[2][2].confirmed,
+        strong_evidence=first_strong | second_strong)
     return proposal, judged, confidence, report

@@ -127,6 +127,34 @@ def test_a_cluster_the_streaks_confirm_in_one_network_keeps_that_networks_judged
     assert report.confirmed[64, 64] and 0.0 <= report.fallback_fraction < 0.5
 
 
+def test_strong_streaks_keep_a_networks_judged_lamp_though_one_channel_kept_a_small_share(psf, monkeypatch):
+    """The streaks show the lamp beyond doubt (z >= STRONG_EVIDENCE_Z) but the evidence keeps less than
+    STRONG_EVIDENCE_SHARE of one channel: the shape cap applies (not confirmed), yet the pair keeps the exact
+    network's judged lamp - its light is the judgement's, already scaled by the share - not the white minimum
+    (a share test here left night lamps whose blue streaks kept 0.6-0.8 to the minimum)."""
+    from hdrcam.recon import consistency
+    from hdrcam.recon.network_agreement import judge_pair
+
+    truth, frame = _captured_lamp(psf)
+    clipped = frame >= CLIP_LEVEL
+    exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
+    white = np.where(clipped, 1.0, frame).astype(np.float32)
+    fitted = consistency._evidence_shares
+
+    def cut_in_one_channel(*arguments):
+        shares, significance = fitted(*arguments)
+        return np.array([consistency.STRONG_EVIDENCE_SHARE / 2, 1.0, 1.0], np.float32) * shares, significance
+
+    monkeypatch.setattr(consistency, "_evidence_shares", cut_in_one_channel)
+    judged_exact, confidence_exact, report_exact = consistency.make_consistent(frame, exact, psf,
+                                                                               noise=consistency.NoiseModel())
+    lamp = report_exact.strong_evidence
+    assert lamp[64, 64] and not report_exact.confirmed.any()
+    _, judged, confidence, report = judge_pair(frame, white, exact, psf, noise=consistency.NoiseModel())
+    assert np.array_equal(judged[lamp], judged_exact[lamp]) and np.array_equal(confidence[lamp], confidence_exact[lamp])
+    assert float(judged[64, 64, 1]) > 1.0 and report.strong_evidence[64, 64] and not report.confirmed.any()
+
+
 def test_confirmed_in_both_networks_the_cluster_holding_more_light_is_kept_whole(psf):
     """The other network proposes a tenth of the lamp's excess, or the lamp's light moved from its rim into its
     core: the streaks confirm both proposals, and the pair keeps the whole cluster from the one judgement that
@@ -166,7 +194,7 @@ def test_without_confirming_streaks_only_what_both_paint_is_judged(psf):
     bright, dim = (np.where(clipped, level, frame).astype(np.float32) for level in (8.0, 2.0))
     proposal, judged, confidence, report = judge_pair(frame, bright, dim, psf, noise=NoiseModel())
     expected, expected_confidence, expected_report = make_consistent(frame, dim, psf, noise=NoiseModel())
-    assert not report.confirmed.any()
+    assert not report.confirmed.any() and not report.strong_evidence.any()
     assert np.array_equal(proposal, dim) and np.array_equal(judged, expected)
     assert np.array_equal(confidence, expected_confidence)
     assert report.fallen_back_pixels == expected_report.fallen_back_pixels == int(clipped.any(axis=-1).sum())
