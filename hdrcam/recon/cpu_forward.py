@@ -36,10 +36,12 @@ _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network ->
 # by a bad access) when tests/faults/test_signals_and_concurrency.py sent itself SIGTERM after
 # tests/cli/test_recon_cli.py had run the two default networks; OpenVINO's CPU plugin calls sigaltstack on the
 # compiling thread (gdb), so a released model apparently leaves that thread's alternate signal stack dangling.
-# Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights
-# (the paper preset's frozen VGG-19 counts by identity: each load of it compiles anew).
+# Not reproduced outside pytest. A compiled `fast` network holds a few MB: one per distinct set of weights.
 _by_weights: dict[tuple[str, int], object] = {}
 _compiled_models: list = []  # every OpenVINO model compiled here, also those that failed the probe check
+# (weights digest, threads) that could not be compiled or failed the probe check: they run the PyTorch forward
+# without another try (an export and a compilation cost seconds, and the warning was given once)
+_failed: set[tuple[str, int]] = set()
 
 
 class CompiledForward:
@@ -114,9 +116,10 @@ def _checked(network: ReconstructionNet, threads: int) -> CompiledForward:
 def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[torch.Tensor], torch.Tensor]:
     """The function reconstruct_frame runs on each window: LDR (N, 3, H, W) -> HDR estimate (N, 3, H, W).
 
-    OpenVINO's compiled model (once per network, weights and torch thread count; later calls reuse it) for a
-    :class:`ReconstructionNet` in float32 on the CPU; ``network(ldr).hdr`` for anything else, and - after one
-    warning - when it cannot be compiled or disagrees with the PyTorch forward."""
+    OpenVINO's compiled model (once per set of weights and torch thread count; later calls reuse it, also for
+    the same weights loaded again) for a :class:`ReconstructionNet` in float32 on the CPU; ``network(ldr).hdr``
+    for anything else, and - after one warning, without trying again for the same weights - when it cannot be
+    compiled or disagrees with the PyTorch forward."""
     if not (isinstance(network, ReconstructionNet) and device.type == "cpu" and dtype == torch.float32):
         return _plain(network)
     threads = torch.get_num_threads()
@@ -124,6 +127,8 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
     if forward is not None and forward.built_for(network, threads):
         return forward
     key = (_digest(network), threads)
+    if key in _failed:
+        return _plain(network)
     if key in _by_weights:  # these weights compiled and checked before: a request of this network's own
         forward = CompiledForward(network, threads, _by_weights[key])
     else:
@@ -133,6 +138,7 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
             reason = (str(error).splitlines() or [""])[0]
             warnings.warn(f"OpenVINO forward unavailable ({type(error).__name__}: {reason}); running the plain "
                           "PyTorch forward (slower)", stacklevel=2)
+            _failed.add(key)
             return _plain(network)
         _by_weights[key] = forward.compiled
     _compiled[network] = forward
@@ -140,15 +146,13 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
 
 
 def _digest(network: ReconstructionNet) -> str:
-    """SHA-256 of the weights a compiled model depends on (:func:`_weights`: trainable values; the frozen
-    VGG-19's storage identity)."""
+    """SHA-256 of every weight a compiled model depends on, by value: the trainable ones and the frozen VGG-19's
+    (paper preset; hashing its ~80 MB takes a fraction of the compilation it spares when the network is loaded
+    again)."""
     digest = hashlib.sha256()
-    for key, value in sorted(_weights(network, copy=False).items()):
+    for key, value in sorted(network.state_dict().items()):
+        tensor = value.detach().contiguous().cpu()
         digest.update(key.encode())
-        if isinstance(value, tuple):
-            digest.update(repr(value).encode())
-        else:
-            tensor = value.detach().contiguous().cpu()
-            digest.update(str((tuple(tensor.shape), tensor.dtype)).encode())
-            digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes() if tensor.numel() else b"")
+        digest.update(str((tuple(tensor.shape), tensor.dtype)).encode())
+        digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes() if tensor.numel() else b"")
     return digest.hexdigest()

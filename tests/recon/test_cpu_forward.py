@@ -1,6 +1,7 @@
 """The OpenVINO forward reconstruct_frame runs on a CPU equals the PyTorch forward, and falls back visibly."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -65,6 +66,7 @@ def test_failure_falls_back_to_the_pytorch_forward_with_one_warning(monkeypatch)
 
     monkeypatch.setattr(cpu_forward, "CompiledForward", broken)
     monkeypatch.setattr(cpu_forward, "_by_weights", {})  # compile anew (the same weights would be reused)
+    monkeypatch.setattr(cpu_forward, "_failed", set())  # and keep this failure from the other tests
     with pytest.warns(UserWarning, match="OpenVINO forward unavailable .*no compiler here.*plain PyTorch"):
         plain, _ = reconstruct_frame(_trained_like_network(), frame, **settings)
     assert not np.array_equal(plain, frame)
@@ -103,3 +105,45 @@ def test_the_compiled_forward_keeps_the_trainable_weights_and_only_the_identity_
     with torch.no_grad():
         next(network.splitting.vgg.parameters()).mul_(1.5)
     assert not unchanged()
+
+
+def test_weights_that_failed_to_compile_are_not_tried_again(monkeypatch):
+    attempts = []
+
+    def broken(*_arguments):
+        attempts.append(1)
+        raise RuntimeError("no compiler here")
+
+    monkeypatch.setattr(cpu_forward, "CompiledForward", broken)
+    monkeypatch.setattr(cpu_forward, "_by_weights", {})
+    monkeypatch.setattr(cpu_forward, "_failed", set())
+    with pytest.warns(UserWarning, match="OpenVINO forward unavailable"):
+        hdr_forward(_trained_like_network(), CPU, torch.float32)
+    loaded_again = _trained_like_network()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no second warning
+        forward = hdr_forward(loaded_again, CPU, torch.float32)
+    assert len(attempts) == 1
+    ldr = torch.rand(1, 3, 32, 32, generator=torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        assert torch.equal(forward(ldr), loaded_again(ldr).hdr)
+    other = _trained_like_network()
+    with torch.no_grad():
+        other.splitting.exit.bias.add_(0.1)
+    with pytest.warns(UserWarning, match="OpenVINO forward unavailable"):  # other weights get their own try
+        hdr_forward(other, CPU, torch.float32)
+    assert len(attempts) == 2
+
+
+def test_the_paper_network_loaded_again_has_the_digest_of_its_values_not_of_its_vgg_storage():
+    from hdrcam.recon.vgg import load_vgg19
+
+    network = ReconstructionNet(preset("paper"), vgg=load_vgg19(random_features=True)).eval()
+    again = ReconstructionNet(preset("paper"), vgg=load_vgg19(random_features=True)).eval()
+    assert cpu_forward._digest(again) != cpu_forward._digest(network)
+    again.load_state_dict(network.state_dict())
+    assert next(again.splitting.vgg.parameters()).data_ptr() != next(network.splitting.vgg.parameters()).data_ptr()
+    assert cpu_forward._digest(again) == cpu_forward._digest(network)  # its compiled model is reused
+    with torch.no_grad():
+        next(again.splitting.vgg.parameters()).mul_(1.5)
+    assert cpu_forward._digest(again) != cpu_forward._digest(network)
