@@ -230,9 +230,10 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()
     partner_start = partner_state = None
-    saved = _saved_config(out) if partner and not partner_resumes and resume else None  # the run's, before this call
+    # the config the main run saved before this call (resuming a run whose partner has not started yet)
+    saved_config = _saved_config(out) if partner and not partner_resumes and resume else None
     if partner and not partner_resumes:  # checked before any training
-        began = _run_start(saved) if not checkpoint else None
+        began = _run_start(saved_config) if not checkpoint else None
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
@@ -249,7 +250,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     if partner_start is not None:
         new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
                            "init_checkpoint": str(partner_start),
-                           "seed": (seed if seed is not None else (saved or {}).get("seed", 0)) + 1}  # other batches
+                           "seed": _main_seed(seed, saved_config) + 1}  # other batches than the main run's
         if resume:
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
@@ -279,6 +280,15 @@ def _saved_config(out: Path) -> dict | None:
 
     saved = out / "checkpoint.pt"
     return read_checkpoint(saved)["config"] if saved.is_file() else None
+
+
+def _main_seed(seed: int | None, saved_config: dict | None) -> int:
+    """The main run's seed: the one given, else the one its saved config holds, else TrainConfig's default."""
+    from hdrcam.train.config import TrainConfig
+
+    if seed is not None:
+        return seed
+    return (saved_config or {}).get("seed", TrainConfig.seed)
 
 
 def _run_start(saved: dict | None) -> tuple[Path, dict] | None:

@@ -5,8 +5,10 @@ An estimate proposes, for each cluster of clipped pixels (hdrcam.recon.tiling.cl
 colour channel c, an excess E >= 0 over the clip level on the pixels where channel c clipped. The frame can
 only take that excess down, never up, so the result is never brighter than the proposal:
 
-- Floor. A clipped channel's radiance is at least the clip level: the estimate there is max(estimate, 1)
-  (a network may say 0.06 where the sensor recorded white); channels that did not clip keep the frame.
+- Floor. The judged value of a clipped channel is at least the clip level, max(estimate, 1), because the
+  sensor recorded white there (a network may say 0.06); channels that did not clip keep the frame. This is
+  the output's convention: the bound below charges the clipped pixels the estimate's own light
+  B = min(estimate, 1), so it holds for B + E, and the floored output re-imaged may exceed it by P * (1 - B).
 - Upper bound, per unclipped pixel. The scene under the streaks is non-negative, so the re-imaged excess may
   add at most what the frame recorded beyond the clipped pixels' own light up to the clip level:
   (P * E)(x) <= y(x) - (P * B)(x) + K_SIGMA sigma(y(x)) + TOLERANCE, B = min(estimate, 1) on clipped channels

@@ -11,8 +11,8 @@ cluster of clipped pixels whose streaks show one network's proposed light beyond
 result - the amount is the judgement's (each channel already scaled by its evidence share), so the share
 need not reach STRONG_EVIDENCE_SHARE as it must for the shape cap's exemption (requiring it left lamps whose
 blue streaks kept 0.6-0.8 to the minimum: night dev scenes -0.5 dB); strong in both, the judged cluster that
-holds more light (a whole cluster from one judgement: the frame's bound holds for it). Every other pixel
-keeps the judged minimum.
+holds more light (a whole cluster from one judgement, so the judge's bound on its excess holds for it). Every
+other pixel keeps the judged minimum.
 
 Measured (dev cases, then under a rule written first) in tools/results/real-data/README.md, "Two networks
 agree unless the frame confirms one".
@@ -32,11 +32,11 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
     (the proposal taken per pixel: the minimum, or the estimate of the network the streaks bear out; the judged
     estimate, as :func:`make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
 
-    Each cluster (hdrcam.recon.tiling.clipped_clusters) is taken whole from one judgement, so the frame's upper
-    bound holds for it as the judge left it: strong streak evidence for one network's proposal, that
-    network's; for both, the one whose judged cluster holds more light; else the minimum's. The report counts
-    the proposed and kept excess of the pixels' chosen sources; its ``confirmed`` and ``strong_evidence``
-    masks are the union of the two networks'."""
+    Each cluster (hdrcam.recon.tiling.clipped_clusters) is taken whole from one judgement, so the judge's upper
+    bound on its excess holds for it as the judge left it: strong streak evidence for one network's proposal,
+    that network's; for both, the one whose judged cluster holds more light; else the minimum's. The report
+    counts the proposed and kept excess of the pixels' chosen sources, and its ``confirmed`` and
+    ``strong_evidence`` masks are, per pixel, those of the judgement the pixel was taken from."""
     proposals = [np.minimum(first, second), first, second]  # indices 0, 1, 2 of ``source`` below
     judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in proposals]
     clipped_channels = frame >= CLIP_LEVEL
@@ -57,17 +57,17 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
         out = values[0].copy()
         for index in (1, 2):
             out[source == index] = values[index][source == index]
-        return out.astype(np.float32)
+        return out
 
-    proposal = picked(proposals)
-    judged = picked([judged for judged, _, _ in judgements])
-    confidence = picked([confidence for _, confidence, _ in judgements])
+    proposal = picked(proposals).astype(np.float32)
+    judged = picked([judged for judged, _, _ in judgements]).astype(np.float32)
+    confidence = picked([confidence for _, confidence, _ in judgements]).astype(np.float32)
     report = ConsistencyReport(
         clusters=judgements[0][2].clusters,
         proposed_excess=float(np.where(clipped_channels, np.maximum(proposal, 1.0) - 1.0, 0.0).sum()),
         kept_excess=float(np.where(clipped_channels, judged - 1.0, 0.0).sum()),
         clipped_pixels=int(clipped.sum()),
         fallen_back_pixels=int((confidence[clipped] < FALLEN_BACK_SHARE).sum()),
-        confirmed=judgements[1][2].confirmed | judgements[2][2].confirmed,
-        strong_evidence=first_strong | second_strong)
+        confirmed=picked([report.confirmed for _, _, report in judgements]),
+        strong_evidence=picked([report.strong_evidence for _, _, report in judgements]))
     return proposal, judged, confidence, report

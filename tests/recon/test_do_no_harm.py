@@ -532,3 +532,23 @@ def test_a_lamp_proposed_exactly_keeps_its_light_though_its_spill_clips_dim_neig
     kept_excess = float(np.where(clipped, kept - 1.0, 0.0).sum())
     true_excess = float(np.where(clipped, np.maximum(truth, 1.0) - 1.0, 0.0).sum())
     assert kept_excess == pytest.approx(true_excess, rel=0.03)
+
+
+def test_light_a_proposal_moves_from_dark_clipped_pixels_into_a_peak_is_not_kept_above_the_truth(model):
+    """A 13 x 13 window at 3 x white on 0.05 through the shipped PSF, with the camera's noise, proposed as 0 on
+    its clipped pixels (the bound then charges them no light of their own: B = min(estimate, 1) = 0) and
+    8 x its whole excess painted into the central 5 x 5. The judge keeps the proposal's excess at most at the
+    truth's (the shape cap and the evidence share hold it there, 0.56 of the truth; the upper bound is slack)."""
+    from hdrcam.recon.consistency import make_consistent
+
+    psf = np.asarray(model.psf, np.float32)
+    truth = np.full((128, 128, 3), 0.05, np.float32)
+    truth[58:71, 58:71] = 3.0
+    frame = capture(truth, psf)
+    clipped = frame >= CLIP_LEVEL
+    true_excess = float(np.where(clipped, np.maximum(truth, 1.0) - 1.0, 0.0).sum())
+    proposal = np.where(clipped, 0.0, frame).astype(np.float32)
+    peak = clipped[62:67, 62:67]
+    proposal[62:67, 62:67] = np.where(peak, 1.0 + 8.0 * true_excess / peak.sum(), proposal[62:67, 62:67])
+    kept, _, _ = make_consistent(frame, proposal, psf, noise=NOISE)
+    assert float(np.where(clipped, kept - 1.0, 0.0).sum()) <= true_excess

@@ -13,7 +13,8 @@ from hdrcam.sensor import fft_convolve
 
 
 def convolve(image: np.ndarray, psf: np.ndarray) -> np.ndarray:
-    return fft_convolve(torch.from_numpy(image.transpose(2, 0, 1).copy()), torch.from_numpy(psf)).numpy().transpose(1, 2, 0)
+    planes = fft_convolve(torch.from_numpy(image.transpose(2, 0, 1).copy()), torch.from_numpy(psf))
+    return planes.numpy().transpose(1, 2, 0)
 
 
 def test_with_the_true_highlights_the_unclipped_pixels_are_the_scene_clipped_at_one_seen_through_the_psf():
@@ -27,7 +28,8 @@ def test_with_the_true_highlights_the_unclipped_pixels_are_the_scene_clipped_at_
     guess = np.where(clipped[..., None], scene, rng.uniform(0, 5, scene.shape)).astype(np.float32)  # junk outside
     output = subtract_highlight_spill(frame, guess, psf, clipped)
     background = convolve(np.where(clipped[..., None], np.minimum(scene, 1.0), scene).astype(np.float32), psf)
-    np.testing.assert_allclose(output[~clipped], background[~clipped], atol=5e-5)  # float32 FFT round-off of a 90x highlight
+    # float32 FFT round-off of a 90x highlight
+    np.testing.assert_allclose(output[~clipped], background[~clipped], atol=5e-5)
     np.testing.assert_array_equal(output[clipped], scene[clipped])
     far = np.ones_like(clipped)
     far[40 - 15 - 4:44 + 15 + 4, 50 - 15 - 4:54 + 15 + 4] = False  # beyond the PSF's reach of the blob

@@ -1,6 +1,6 @@
 """A partner network's second opinion (``reconstruct(..., partner=)``, ``--partner``): only what both networks paint
-is kept, with the mirror pass as before, unless the frame's streaks confirm one network's proposal
-(hdrcam.recon.network_agreement); the partner must have been trained behind the same PSF."""
+is kept, with the mirror pass as before, unless the frame's streaks show one network's proposal beyond doubt
+(strong evidence; hdrcam.recon.network_agreement); the partner must have been trained behind the same PSF."""
 
 from __future__ import annotations
 
@@ -155,13 +155,25 @@ def test_strong_streaks_keep_a_networks_judged_lamp_though_one_channel_kept_a_sm
     assert float(judged[64, 64, 1]) > 1.0 and report.strong_evidence[64, 64] and not report.confirmed.any()
 
 
-def test_confirmed_in_both_networks_the_cluster_holding_more_light_is_kept_whole(psf):
+@pytest.mark.parametrize("share_cut", [False, True])
+def test_strong_in_both_networks_the_cluster_holding_more_light_is_kept_whole(psf, monkeypatch, share_cut):
     """The other network proposes a tenth of the lamp's excess, or the lamp's light moved from its rim into its
-    core: the streaks confirm both proposals, and the pair keeps the whole cluster from the one judgement that
-    holds more light (never a per-pixel mixture, which the frame's upper bound need not allow)."""
+    core: the streaks are strong evidence for both proposals, and the pair keeps the whole cluster from the one
+    judgement that holds more light (never a per-pixel mixture, which the frame's upper bound need not allow),
+    with that judgement's masks in the report. With the red share cut below STRONG_EVIDENCE_SHARE neither is
+    confirmed (the shape cap's exemption), and the rule is the same."""
+    from hdrcam.recon import consistency
     from hdrcam.recon.consistency import NoiseModel, make_consistent
     from hdrcam.recon.network_agreement import judge_pair
 
+    if share_cut:
+        fitted = consistency._evidence_shares
+
+        def cut_in_one_channel(*arguments):
+            shares, significance = fitted(*arguments)
+            return np.array([consistency.STRONG_EVIDENCE_SHARE / 2, 1.0, 1.0], np.float32) * shares, significance
+
+        monkeypatch.setattr(consistency, "_evidence_shares", cut_in_one_channel)
     truth, frame = _captured_lamp(psf)
     clipped = frame >= CLIP_LEVEL
     exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
@@ -170,18 +182,23 @@ def test_confirmed_in_both_networks_the_cluster_holding_more_light_is_kept_whole
     peaked[61:68, 61:68] = np.where(clipped[61:68, 61:68], 1.0, peaked[61:68, 61:68])
     peaked[64, 64] += float((exact[61:68, 61:68] - peaked[61:68, 61:68]).sum(axis=(0, 1)).mean())
     for other in (dim, peaked):
-        _, judged, confidence, _ = judge_pair(frame, other, exact, psf, noise=NoiseModel())
+        _, judged, confidence, report = judge_pair(frame, other, exact, psf, noise=NoiseModel())
         first, first_confidence, report_first = make_consistent(frame, other, psf, noise=NoiseModel())
         second, second_confidence, report_second = make_consistent(frame, exact, psf, noise=NoiseModel())
-        both = report_first.confirmed & report_second.confirmed
+        both = report_first.strong_evidence & report_second.strong_evidence
         assert both[64, 64]
+        assert share_cut == (not (report_first.confirmed | report_second.confirmed).any())
         light = [float(np.where(clipped & both[..., None], judgement - 1.0, 0.0).sum())
                  for judgement in (first, second)]
-        kept, kept_confidence = (first, first_confidence) if light[0] >= light[1] else (second, second_confidence)
+        kept, kept_confidence, kept_report = ((first, first_confidence, report_first) if light[0] >= light[1]
+                                              else (second, second_confidence, report_second))
         assert np.array_equal(judged[both], kept[both]) and np.array_equal(confidence[both], kept_confidence[both])
+        assert np.array_equal(report.confirmed[both], kept_report.confirmed[both])
+        assert np.array_equal(report.strong_evidence[both], kept_report.strong_evidence[both])
         swapped = judge_pair(frame, exact, other, psf, noise=NoiseModel())  # the rule, not the argument order
         assert np.array_equal(swapped[1], judged) and np.array_equal(swapped[2], confidence)
-    assert float(judge_pair(frame, dim, exact, psf, noise=NoiseModel())[1][64, 64].mean()) >= 0.8 * 400.0
+    if not share_cut:  # confirmed, the kept lamp is exempt from the shape cap and keeps its core
+        assert float(judge_pair(frame, dim, exact, psf, noise=NoiseModel())[1][64, 64].mean()) >= 0.8 * 400.0
 
 
 def test_without_confirming_streaks_only_what_both_paint_is_judged(psf):
