@@ -125,7 +125,7 @@ def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1
                      for name, m in scores.items())
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
     networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint, "
-                "except where the streaks confirm one)" if partner else f"Network: `{checkpoint}`")
+                "except where strong streaks bear one out)" if partner else f"Network: `{checkpoint}`")
     return f"""# hdrcam demo
 
 The whole chain on the simulated camera, {seconds} s in all. {networks}.
