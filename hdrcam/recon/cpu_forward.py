@@ -40,7 +40,8 @@ _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # network ->
 _by_weights: dict[tuple[str, int], object] = {}
 _compiled_models: list = []  # every OpenVINO model compiled here, also those that failed the probe check
 # (weights digest, threads) that could not be compiled or failed the probe check: they run the PyTorch forward
-# without another try (an export and a compilation cost seconds, and the warning was given once)
+# without another try for the life of the process (an export and a compilation cost seconds, and the warning was
+# given once); another thread count tries, and warns, again
 _failed: set[tuple[str, int]] = set()
 
 
@@ -127,10 +128,10 @@ def hdr_forward(network, device: torch.device, dtype: torch.dtype) -> Callable[[
     if forward is not None and forward.built_for(network, threads):
         return forward
     key = (_digest(network), threads)
-    if key in _failed:
-        return _plain(network)
     if key in _by_weights:  # these weights compiled and checked before: a request of this network's own
         forward = CompiledForward(network, threads, _by_weights[key])
+    elif key in _failed:
+        return _plain(network)
     else:
         try:
             forward = _checked(network, threads)

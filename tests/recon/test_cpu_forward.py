@@ -147,3 +147,12 @@ def test_the_paper_network_loaded_again_has_the_digest_of_its_values_not_of_its_
     with torch.no_grad():
         next(again.splitting.vgg.parameters()).mul_(1.5)
     assert cpu_forward._digest(again) != cpu_forward._digest(network)
+
+
+def test_weights_compiled_once_keep_their_model_though_a_later_try_failed(monkeypatch):
+    """A passing failure (memory, a second thread compiling the same weights) must not hide a model that works."""
+    network = _trained_like_network()
+    assert isinstance(hdr_forward(network, CPU, torch.float32), CompiledForward)
+    key = (cpu_forward._digest(network), torch.get_num_threads())
+    monkeypatch.setattr(cpu_forward, "_failed", {key})
+    assert isinstance(hdr_forward(_trained_like_network(), CPU, torch.float32), CompiledForward)

@@ -291,3 +291,27 @@ def test_evaluate_scores_each_checkpoint_with_its_partner_unless_told_not_to(tmp
     with pytest.raises(SystemExit) as usage:
         main(arguments + ["--no-partner", "--partner", str(SHIPPED_CHECKPOINT), "--out", str(tmp_path / "x")])
     assert usage.value.code == 2 and "not allowed with" in capsys.readouterr().err
+
+
+def test_the_report_masks_are_those_of_the_judgement_each_pixel_was_taken_from(psf, monkeypatch):
+    """Strong evidence for both networks; the first's judgement also confirms the amount (shape cap lifted), the
+    second's holds more light and does not: the pair takes the second's cluster, so its report must not mark the
+    cluster confirmed (the union of the two networks' masks did)."""
+    from hdrcam.recon import network_agreement
+    from hdrcam.recon.consistency import ConsistencyReport, NoiseModel
+
+    _, frame = _captured_lamp(psf)
+    clipped = (frame >= CLIP_LEVEL).any(axis=-1)
+    first = np.where(frame >= CLIP_LEVEL, 2.0, frame).astype(np.float32)
+    second = np.where(frame >= CLIP_LEVEL, 5.0, frame).astype(np.float32)
+
+    def judged_as_proposed(frame_, estimate, psf_, *, noise):
+        strong = clipped if estimate is first or estimate is second else np.zeros_like(clipped)
+        confirmed = clipped if estimate is first else np.zeros_like(clipped)
+        confidence = np.ones(clipped.shape, np.float32)
+        return estimate, confidence, ConsistencyReport(1, 0.0, 0.0, int(clipped.sum()), 0, confirmed, strong)
+
+    monkeypatch.setattr(network_agreement, "make_consistent", judged_as_proposed)
+    _, judged, _, report = network_agreement.judge_pair(frame, first, second, psf, noise=NoiseModel())
+    assert np.array_equal(judged[clipped], second[clipped])
+    assert report.strong_evidence[clipped].all() and not report.confirmed.any()
