@@ -50,13 +50,14 @@ only take that excess down, never up, so the result is never brighter than the p
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
   pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
   cluster whose evidence is strong (z >= STRONG_EVIDENCE_Z in some channel: its streaks confirm its light
-  beyond doubt, as a lamp's do) and confirms the amount (its evidence share - of the excess the upper bound
-  left - is at least STRONG_EVIDENCE_SHARE in every channel) keeps the proposed shape: a lamp's core lies far
-  above its blob's mean, and the cap cost night scenes most of the judge's loss; a proposal the evidence had
-  to cut is wrong somewhere, and its peaks are capped - also a true lamp proposed a few times too bright whose
-  bound and evidence cut it unevenly across channels (a 400 x white core proposed 3 x too bright ends near 35
-  instead of 415; tools/results/real-data/README.md, "Strong streak evidence lifts the shape cap", "The
-  exemption only where the evidence also confirms the amount").
+  beyond doubt, as a lamp's do) and does not refute the amount (its evidence share - of the excess the upper
+  bound left, with the texture's allowance above - is at least STRONG_EVIDENCE_SHARE in every channel; on a
+  textured surround that holds for a proposal a few times too bright too) keeps the proposed shape: a lamp's
+  core lies far above its blob's mean, and the cap cost night scenes most of the judge's loss; a proposal the
+  evidence had to cut is wrong somewhere, and its peaks are capped - also a true lamp proposed a few times too
+  bright whose bound and evidence cut it unevenly across channels (a 400 x white core proposed 3 x too bright
+  ends near 35 instead of 415; tools/results/real-data/README.md, "Strong streak evidence lifts the shape cap",
+  "The exemption only where the evidence also confirms the amount").
 
 A clipped pixel deep inside a large clipped region sends no light to any unclipped pixel: only the evidence
 of its cluster's edge and the network's prior (trained on real photographs, hdrcam.data.scenes) decide it.
@@ -82,7 +83,7 @@ LOCAL_BOUND_PX = 5  # a clipped pixel answers for the unclipped pixels this clos
 LOCAL_BOUND_ITERATIONS = 3
 EVIDENCE_INNER_PX = 2  # the lens core: a highlight's own edge blurs this far (evidence starts beyond)
 EVIDENCE_ENERGY = 0.99  # the DOE's spill is read as far from the cluster as the PSF holds this share of its light
-Z_MIN = 3.0  # a streak amplitude this many standard deviations above zero is kept at (1 - 1/z^2) of its value
+Z_MIN = 3.0  # evidence this many standard deviations above zero is kept at (1 - (Z_MIN / z)^2) of its amount
 TEXTURE_CORRELATION = 4.0  # neighbouring residuals are correlated (texture, PSF): variance x this
 TEXTURE_SD_ALLOWANCE = 16.0  # the amount is trusted to within this many standard errors of the texture residual
 MIN_FIT_PIXELS = 8  # fewer unclipped pixels in the evidence ring: no evidence, the frame is kept
@@ -112,7 +113,7 @@ class ConsistencyReport:
     kept_excess: float  # what the judged estimate keeps of it (after the shape cap)
     clipped_pixels: int
     fallen_back_pixels: int  # clipped pixels that kept less than FALLEN_BACK_SHARE of their proposed excess
-    # H x W bool: clipped pixels of the clusters whose streak evidence confirmed the proposal (z >=
+    # H x W bool: clipped pixels of the clusters whose streak evidence did not refute the proposal (z >=
     # STRONG_EVIDENCE_Z, shares >= STRONG_EVIDENCE_SHARE: exempt from the shape cap); None where not recorded
     confirmed: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
     # H x W bool: clipped pixels of the clusters whose streaks show their proposed light beyond doubt (z >=
