@@ -500,7 +500,7 @@ def test_a_real_window_onto_an_overcast_sky_is_not_made_worse_than_the_frame(tmp
 
 
 def test_a_lamp_whose_streaks_confirm_it_keeps_its_core_and_the_shape_cap_applies_without_that_evidence(
-        model, monkeypatch):
+        model, monkeypatch, cut_red_evidence_share):
     """A 7 x 7 lamp on 0.05 (noise as the camera's), its centre pixel at 400 x white over a rim at 3 x: the core is
     ~50 x its blob's mean excess. Proposed exactly, through the shipped DOE, its streaks give the evidence
     fit z far above STRONG_EVIDENCE_Z, so the judge keeps the core; where the evidence keeps less than
@@ -522,14 +522,8 @@ def test_a_lamp_whose_streaks_confirm_it_keeps_its_core_and_the_shape_cap_applie
 
     assert kept_core() >= 0.8 * 400.0
     cap = max(1.0 + consistency.SHAPE_CAP * float((proposal[..., c] - 1.0)[clipped[..., c]].mean()) for c in range(3))
-    fitted = consistency._evidence_shares
-
-    def cut_in_one_channel(*arguments):
-        shares, significance = fitted(*arguments)
-        return np.array([consistency.STRONG_EVIDENCE_SHARE / 2, 1.0, 1.0], np.float32) * shares, significance
-
     with monkeypatch.context() as patched:  # strong z, but the evidence keeps too little of one channel
-        patched.setattr(consistency, "_evidence_shares", cut_in_one_channel)
+        cut_red_evidence_share(patched)
         assert kept_core() <= cap * (1.0 + 1e-5)
     monkeypatch.setattr(consistency, "STRONG_EVIDENCE_Z", np.inf)
     assert kept_core() <= cap * (1.0 + 1e-5) < 0.15 * 400.0
