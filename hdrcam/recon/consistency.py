@@ -270,9 +270,9 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
         amplitude = float(coefficients[0])
         residual_variance = float(np.mean((values - design @ coefficients) ** 2))
         noise_variance = float(np.mean(sigma[..., channel][ring] ** 2))
-        per_variance = float(np.linalg.pinv(design.T @ design)[0, 0]) * TEXTURE_CORRELATION
-        z = amplitude / np.sqrt(max(per_variance * max(residual_variance, noise_variance), 1e-30))
-        texture_sd = np.sqrt(per_variance * max(residual_variance - noise_variance, 0.0))
+        amplitude_variance_factor = float(np.linalg.pinv(design.T @ design)[0, 0]) * TEXTURE_CORRELATION
+        z = amplitude / np.sqrt(max(amplitude_variance_factor * max(residual_variance, noise_variance), 1e-30))
+        texture_sd = np.sqrt(amplitude_variance_factor * max(residual_variance - noise_variance, 0.0))
         shares[channel] = min(1.0, (amplitude + TEXTURE_SD_ALLOWANCE * texture_sd) * (1.0 - (Z_MIN / z) ** 2)) \
             if z > Z_MIN else 0.0
         significance = max(significance, z)
