@@ -45,15 +45,7 @@ only take that excess down, never up, so the result is never brighter than the p
   dev night scenes (light-weighted 95th percentile 17). On a flat or noise-limited surround s_T = 0 and a
   stands (a lamp proposed 4 x too bright is cut to its truth); on a textured one the amount is left to the
   upper bound and the evidence decides whether the streaks show the light (tools/results/real-data/README.md,
-  "The amount trusted only as far as the texture allows"). A channel with no evidence of its own (z <= Z_MIN,
-  or no unclipped pixel beyond the core) in a cluster whose streaks show the light beyond doubt in another
-  channel (z >= STRONG_EVIDENCE_Z) keeps the least share of those channels: the channels image one light
-  through one DOE, and a channel whose streaks are too faint to fit (a weak ring in that band, a facade's
-  texture) otherwise loses all of its excess - a white lamp turned cyan with a pink square around it where
-  the other channels' spill was removed and its own was not (the demo's night scene). Weaker evidence in
-  another channel does not vouch for it: under the bare lens the lens's own diffraction skirt gives one
-  channel z of 10 or more for a highlight barely above white ("Tried on dev cases after the texture-limited
-  amount").
+  "The amount trusted only as far as the texture allows").
 - Shape. The frame constrains how much light a blob sends out, not how it is spread inside it: each pixel's
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
   pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
@@ -263,7 +255,6 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
     outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * outer_px + 1,) * 2, np.uint8)) > 0
     shares = np.ones(3, np.float32)
     significance = -np.inf
-    strong, faint = [], []  # proposed channels whose own evidence is strong, and those with none
     for channel in range(3):
         ring = outer & ~inner & unclipped[..., channel]
         signal = predicted[..., channel][ring].astype(np.float64)
@@ -273,7 +264,6 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
             continue  # nothing proposed in this channel
         if ring.sum() < MIN_FIT_PIXELS:
             shares[channel] = 0.0  # no pixel beyond the lens core saw this highlight: no evidence
-            faint.append(channel)
             continue
         design = np.stack([signal, nuisance[..., channel][ring].astype(np.float64), np.ones_like(signal)], axis=1)
         coefficients, *_ = np.linalg.lstsq(design, values, rcond=None)
@@ -285,10 +275,7 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
         texture_sd = np.sqrt(amplitude_variance_factor * max(residual_variance - noise_variance, 0.0))
         shares[channel] = min(1.0, (amplitude + TEXTURE_SD_ALLOWANCE * texture_sd) * (1.0 - (Z_MIN / z) ** 2)) \
             if z > Z_MIN else 0.0
-        (strong if z >= STRONG_EVIDENCE_Z else faint if z <= Z_MIN else []).append(channel)
         significance = max(significance, z)
-    if strong and faint:  # the channels image one light through one DOE (module docstring, "Evidence")
-        shares[faint] = shares[strong].min()
     return shares, significance
 
 
