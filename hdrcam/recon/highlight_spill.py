@@ -37,5 +37,5 @@ def subtract_highlight_spill(frame: np.ndarray, hdr: np.ndarray, psf: np.ndarray
         highlights = np.where(own[..., None], np.clip(hdr[crop] - 1.0, 0.0, None), 0.0)
         highlights = highlights.astype(np.float32).transpose(2, 0, 1)
         spilled = fft_convolve(torch.from_numpy(np.ascontiguousarray(highlights)), kernel)
-        spill[crop] += spilled.numpy().transpose(1, 2, 0)
+        spill[crop] += spilled.clamp(min=0.0).numpy().transpose(1, 2, 0)  # light is not negative: FFT round-off
     return np.where(clipped[..., None], hdr, np.clip(output - spill, 0.0, None)).astype(np.float32)
