@@ -3,12 +3,14 @@
 The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, about a quarter
 smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
 attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
-most PREVIEW_SIDE_PX on its longer side and turned upright."""
+most PREVIEW_SIDE_PX on its longer side and turned upright. The preview is made while the EXR is written (on a
+second thread: OpenEXR releases the GIL) and written once the EXR is, so a failed EXR leaves no new preview."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hdrcam.cli.arguments import add_profile_option
@@ -39,8 +41,9 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.hdr.bracket_input import bracket_paths
     from hdrcam.hdr.fuse import fuse
+    from hdrcam.io.atomic import write_bytes_atomic
     from hdrcam.io.exr import write_exr_channels
-    from hdrcam.io.png import write_png
+    from hdrcam.io.png import encoded_png
     from hdrcam.preview import display_oriented, reduced_for_preview, tonemap_rgb
 
     profile = load_profile(arguments.profile)
@@ -55,13 +58,17 @@ def run(arguments: argparse.Namespace) -> int:
     channels = {"RGB": image.rgb, "clipped": image.clipped}
     if image.variance is not None:
         channels["variance"] = image.variance
-    write_exr_channels(out, channels, attributes=image.attributes(), half=arguments.half,
-                       overwrite=arguments.overwrite, compression=arguments.compression)
-    upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
-    write_png(preview, upright, overwrite=arguments.overwrite)
+    with ThreadPoolExecutor(1) as writer:
+        exr_written = writer.submit(write_exr_channels, out, channels, attributes=image.attributes(),
+                                    half=arguments.half, overwrite=arguments.overwrite,
+                                    compression=arguments.compression)
+        upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
+        png = encoded_png(upright, preview)
+        exr_written.result()
+    write_bytes_atomic(preview, png, overwrite=arguments.overwrite)
     seconds = time.perf_counter() - started
     merge = image.merge
-    print(f"{len(image.frames)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "
+    print(f"{len(image.frame_metadata)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "
           f"clip level {merge.clip_level_dn:.0f} DN above black; {int(image.clipped.sum())} px clipped in every frame")
     for note in merge.notes:
         print(f"  {note}")

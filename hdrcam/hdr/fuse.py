@@ -22,7 +22,7 @@ from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
-from hdrcam.io.raw import RawFrame
+from hdrcam.io.raw import RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
@@ -37,20 +37,20 @@ class FusedImage:
     clipped: np.ndarray  # H x W bool
     variance: np.ndarray | None  # H x W x 3 float32 (demosaiced variance of the Bayer merge), if asked for
     merge: BayerMerge
-    frames: list[RawFrame]
+    frame_metadata: list[RawMetadata]  # shortest exposure first; the frames' pixels are freed after the merge
     colour: str  # "linear sRGB (D65)" or "camera RGB"
 
     @property
     def orientation(self) -> int:
         """EXIF Orientation code (1 to 8) that displays the image upright (6: turn 90 degrees clockwise); the
         pixels stay in the sensor's orientation. The first frame's."""
-        return self.frames[0].metadata.orientation
+        return self.frame_metadata[0].orientation
 
     def attributes(self) -> dict:
         """The EXR's attributes; ``orientation`` is the EXIF code of the pixels, which are in the sensor's
         orientation (not turned)."""
         return {"units": UNITS, "colour": self.colour, "orientation": self.orientation,
-                "frames": ", ".join(f.metadata.path.name for f in self.frames),
+                "frames": ", ".join(meta.path.name for meta in self.frame_metadata),
                 "labelled_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.labelled_exposures_s),
                 "estimated_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.exposures_s),
                 "clip_level_dn": float(self.merge.clip_level_dn),
@@ -88,8 +88,10 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     if all(all_clipped(frame.bayer_dn, frame.clip_level_tile_dn) for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
     merge = merge_bayer(frames, camera, darks=matching_darks(frames, darks), with_variance=with_variance)
-    meta = frames[0].metadata
-    orientations = sorted({frame.metadata.orientation for frame in frames})
+    frame_metadata = [frame.metadata for frame in frames]
+    del frames  # their LibRaw buffers (2 bytes per sample and frame) are freed before the RGB image is made
+    meta = frame_metadata[0]
+    orientations = sorted({frame.orientation for frame in frame_metadata})
     if len(orientations) > 1:  # the merge is in sensor coordinates and unaffected; only the preview's turn is
         warnings.warn(f"the frames' EXIF orientations differ ({', '.join(map(str, orientations))}; the camera was "
                       f"tilted between shots): the preview is turned as {meta.path.name}'s ({meta.orientation})")
@@ -106,7 +108,7 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         if variance is not None:
             transformed(variance, matrix ** 2)
         colour = "linear sRGB (D65)"
-    return FusedImage(rgb, clipped, variance, merge, frames, colour)
+    return FusedImage(rgb, clipped, variance, merge, frame_metadata, colour)
 
 
 def transformed(pixels: np.ndarray, matrix: np.ndarray) -> np.ndarray:

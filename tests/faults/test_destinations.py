@@ -112,3 +112,18 @@ def test_two_outputs_of_one_command_with_the_same_name_are_refused_before_writin
     before = sorted(p.name for p in tmp_path.rglob("*"))
     assert_failed_with_one_line(run(argv(workspace, tmp_path), capsys), 1, *mentions)
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+def test_fuse_publishes_no_preview_when_its_exr_fails(workspace, tmp_path, capsys, monkeypatch):
+    """The preview is made while the EXR is written, and published only after it."""
+    import errno
+
+    from hdrcam.io import exr
+
+    def disk_full(path, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(exr, "write_exr_channels", disk_full)
+    out = tmp_path / "out"
+    assert_failed_with_one_line(run(command_lines(workspace, out)["fuse"], capsys), 1, "no space left")
+    assert not (out / "fused.png").exists() and not (out / "fused.exr").exists()
