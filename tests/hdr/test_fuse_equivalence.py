@@ -35,3 +35,15 @@ def test_fuse_does_not_depend_on_the_strips(monkeypatch, strip_rows):
         np.testing.assert_array_equal(getattr(image.merge, name), getattr(whole.merge, name), err_msg=name)
     np.testing.assert_array_equal(image.clipped, whole.clipped)
     assert whole.merge.clipped_everywhere.any() and not whole.merge.clipped_everywhere.all()
+
+
+def test_the_colour_transform_is_the_matrix_product_on_every_strip():
+    """Strip by strip in place (a height that no strip size divides), to float32 rounding of the float64 product."""
+    from hdrcam.hdr.fuse import transformed
+
+    pixels = np.random.default_rng(0).random((157, 33, 3), dtype=np.float32) * 100
+    matrix = np.array([[1.8, -0.7, -0.1], [-0.2, 1.5, -0.3], [0.05, -0.5, 1.45]], np.float32)
+    exact = pixels.astype(np.float64) @ matrix.T.astype(np.float64)
+    result = transformed(pixels, matrix)
+    assert result is pixels
+    np.testing.assert_allclose(result, exact, rtol=0, atol=2e-6 * np.abs(exact).max())
