@@ -93,5 +93,5 @@ def run(arguments: argparse.Namespace) -> int:
     write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
     print(summary_markdown(rows, description), end="")
     print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/metrics.csv, summary.md, "
-          "examples.png")
+          "examples.jpg")
     return 0

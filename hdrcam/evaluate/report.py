@@ -1,4 +1,5 @@
-"""Evaluation outputs: metrics.csv (one row per image and method), summary.md (means) and examples.png."""
+"""Evaluation outputs: metrics.csv (one row per image and method), summary.md (means) and
+examples.jpg (tone-mapped truth and methods side by side)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,11 @@ import numpy as np
 
 from hdrcam.evaluate.scoring import Example, ScoredImage
 from hdrcam.io.atomic import write_text_atomic
-from hdrcam.io.png import write_png
+from hdrcam.io.jpeg import write_jpeg
 from hdrcam.preview import log_average_luminance, tonemap_rgb
 
 METRICS = ("psnr_linear", "pu21_psnr", "psnr_mu")
-OUTPUT_NAMES = ("metrics.csv", "summary.md", "examples.png")
+OUTPUT_NAMES = ("metrics.csv", "summary.md", "examples.jpg")
 
 
 def method_means(rows: list[ScoredImage]) -> dict[str, dict[str, float]]:
@@ -80,4 +81,4 @@ def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], de
     write_metrics_csv(out / "metrics.csv", rows, overwrite=overwrite)
     write_text_atomic(out / "summary.md", summary_markdown(rows, description), overwrite=overwrite)
     if examples:
-        write_png(out / "examples.png", examples_figure(examples), overwrite=overwrite)
+        write_jpeg(out / "examples.jpg", examples_figure(examples), overwrite=overwrite)

@@ -42,7 +42,7 @@ def test_design_evaluate_and_finetune(tmp_path, capsys):
     rows = list(csv.DictReader((evaluation / "metrics.csv").open()))
     assert [row["method"] for row in rows] == ["ldr", "hdrcnn-blend", "mine", "mine-network"] * 2
     assert all(np.isfinite(float(row[k])) for row in rows for k in ("psnr_linear", "pu21_psnr", "psnr_mu"))
-    assert "| mine |" in (evaluation / "summary.md").read_text() and (evaluation / "examples.png").is_file()
+    assert "| mine |" in (evaluation / "summary.md").read_text() and (evaluation / "examples.jpg").is_file()
     capsys.readouterr()
     assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--size", "32", "--count", "2",
                  "--out", str(evaluation)]) == 1  # never overwrites

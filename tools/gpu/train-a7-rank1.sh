@@ -5,7 +5,7 @@
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
 #   bash tools/gpu/train-a7-rank1.sh prepare   # -> gpu-data/a, gpu-data/b (the 35 training photographs, 55 MB
 #                                              #    in two halves), .whl/openexr-*.whl (1.7 MB)
-# On the device (the `run` tool; a call carries at most 64 MiB with the 31 MiB working tree, and what it carried
+# On the device (the `run` tool; a call carries at most 64 MiB with the 34 MiB working tree, and what it carried
 # stays while the machine is warm): first call carry gpu-data/a and run `true`; then each call carry gpu-data/b,
 # .whl and runs/a7-rank1, and run
 #   bash tools/gpu/train-a7-rank1.sh slice 540   # trains for 540 s, copies checkpoint + log to $OUT
