@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Training at scale on a lent GPU whose calls last at most 10 minutes: each call trains one slice and leaves the
+# run's checkpoints where the next call resumes them. Two jobs:
+#   a7-rank1  the joint rank-1 DOE + network design at the A7's scale (issue 18) -> runs/a7-rank1
+#   shipped   the shipped network and then its partner fine-tuned behind the shipped PSF (issue 17), on 512^2
+#             crops of the training photographs and procedural night scenes -> runs/shipped-gpu
+#
+# Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
+#   bash tools/gpu/train.sh prepare   # -> gpu-data/a, gpu-data/b (the 35 training photographs, 55 MB in two
+#                                     #    halves), .whl/openexr-*.whl (1.7 MB)
+# On the device (the `run` tool; a call carries at most 64 MiB with the 34 MiB working tree, and what it carried
+# stays while the machine is warm): first call carry gpu-data/a and run `true`; then each call carry gpu-data/b,
+# .whl and the job's run folder, and run
+#   bash tools/gpu/train.sh slice JOB 540   # trains for 540 s, copies the checkpoints + logs to $OUT
+# a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py. shipped: measure
+# RUN/model.pt with RUN/model-partner.pt as tools/results/real-data/README.md measures a pair, against a rule
+# written first, then ship with tools/ship_checkpoint.py.
+# STEPS, CROP, BATCH, DATA, RUN override a job's defaults (a CPU smoke test: CROP=64 BATCH=1 STEPS=2
+# DATA=procedural).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+case "${1:-}" in
+prepare)
+    mkdir -p gpu-data/a gpu-data/b .whl
+    exclude=$(git rev-parse --git-path info/exclude)
+    mkdir -p "$(dirname "$exclude")" && touch "$exclude"
+    grep -qx '/gpu-data/' "$exclude" || echo /gpu-data/ >> "$exclude"
+    grep -qx '/.whl/' "$exclude" || echo /.whl/ >> "$exclude"
+    half=a  # the training split (tools/split_hdr_train.py), never validation, alternately into two halves
+    for photo in runs/data/train/*; do cp -L "$photo" "gpu-data/$half/"; half=$([ $half = a ] && echo b || echo a); done
+    python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+        --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl "OpenEXR==3.5.3"
+    du -sh gpu-data .whl
+    ;;
+slice)
+    job=${2:-}
+    if ! python3 -c "import OpenEXR" 2>/dev/null; then  # the device's python lacks it: the carried wheel
+        python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl
+        export PYTHONPATH=/tmp/site:${PYTHONPATH:-}
+    fi
+    export PYTHONPATH=$PWD:${PYTHONPATH:-}
+    case "$job" in
+    a7-rank1)
+        RUN=${RUN:-runs/a7-rank1}
+        args=(design --profile sony-a7-zeiss50-rank1 --doe rank1 --preset fast --steps "${STEPS:-20000}"
+              --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
+              --data "${DATA:-gpu-data/a:0.35,gpu-data/b:0.35,procedural:0.3}")
+        ;;
+    shipped)
+        RUN=${RUN:-runs/shipped-gpu}
+        args=(finetune --checkpoint hdrcam/checkpoints/simulated-rank1-fast.pt --psf tools/results/shipped-rank1/psf.exr
+              --steps "${STEPS:-6000}" --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 1e-4 --seed 17
+              --data "${DATA:-gpu-data/a:0.3,gpu-data/b:0.3,procedural:0.4}")
+        ;;
+    *)
+        echo "usage: $0 slice a7-rank1|shipped [SECONDS]" >&2
+        exit 2
+        ;;
+    esac
+    args+=(--precision bfloat16 --channels-last --checkpoint-every 100 --out "$RUN")
+    if [ -f "$RUN/config.json" ] && [ ! -f "$RUN/checkpoint.pt" ]; then  # a slice ended before the first save
+        mv "$RUN" "$RUN.unsaved-$(date +%s)"  # kept aside; the run starts again
+    fi
+    [ -f "$RUN/checkpoint.pt" ] && args+=(--resume)
+    timeout "${3:-540}" python3 -m hdrcam "${args[@]}" || [ $? -eq 124 ]  # a slice ends by its time limit
+    if [ -n "${OUT:-}" ]; then
+        for saved in "$RUN/checkpoint.pt" "$RUN/log.jsonl"; do [ -f "$saved" ] && cp "$saved" "$OUT/"; done
+        [ -f "$RUN/partner/checkpoint.pt" ] && cp "$RUN/partner/checkpoint.pt" "$OUT/partner-checkpoint.pt"
+        for model in "$RUN"/model*.pt; do [ -f "$model" ] && cp "$model" "$OUT/"; done
+    fi
+    tail -n 1 "$RUN/log.jsonl" 2>/dev/null || echo "no step logged yet"
+    ;;
+*)
+    echo "usage: $0 prepare | slice a7-rank1|shipped [SECONDS]" >&2
+    exit 2
+    ;;
+esac
