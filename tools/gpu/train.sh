@@ -8,10 +8,12 @@
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
 #   bash tools/gpu/train.sh prepare   # -> gpu-data/a, gpu-data/b (the 35 training photographs, 55 MB in two
 #                                     #    halves), .whl/openexr-*.whl (1.7 MB)
-# On the device (the `run` tool; a call carries at most 64 MiB with the 34 MiB working tree, and what it carried
-# stays while the machine is warm): first call carry gpu-data/a and run `true`; then each call carry gpu-data/b,
-# .whl and the job's run folder, and run
+# On the device (the `run` tool): a call carries at most 64 MiB together with the 34 MiB working tree, and what
+# a call carried stays while the machine is warm. So: one call carries gpu-data/a (30 MiB) and runs `true`; the
+# next carries gpu-data/b and .whl (28 MiB) and runs a slice; later calls carry nothing and run
 #   bash tools/gpu/train.sh slice JOB 540   # trains for 540 s, copies the checkpoints + logs to $OUT
+# Keep what comes back in the job's run folder here; to resume on a fresh machine, carry that folder in a call
+# of its own (after the data).
 # a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py. shipped: measure
 # RUN/model.pt with RUN/model-partner.pt as tools/results/real-data/README.md measures a pair, against a rule
 # written first, then ship with tools/ship_checkpoint.py.
