@@ -6,11 +6,11 @@
 #             crops of the training photographs and procedural night scenes -> runs/shipped-gpu
 #
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
-#   bash tools/gpu/train.sh prepare   # -> gpu-data/a, gpu-data/b (the 35 training photographs, 55 MB in two
-#                                     #    halves), .whl/openexr-*.whl (1.7 MB)
+#   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs, 55 MB in three
+#                                     #    parts), .whl/openexr-*.whl (1.7 MB)
 # On the device (the `run` tool): a call carries at most 64 MiB together with the 34 MiB working tree, and what
-# a call carried stays while the machine is warm. So: one call carries gpu-data/a (30 MiB) and runs `true`; the
-# next carries gpu-data/b and .whl (28 MiB) and runs a slice; later calls carry nothing and run
+# a call carried stays while the machine is warm. So: two calls carry gpu-data/a and gpu-data/b (about 18 MiB
+# each) and run `true`; the third carries gpu-data/c and .whl and runs a slice; later calls carry nothing and run
 #   bash tools/gpu/train.sh slice JOB 540   # trains for 540 s, copies the checkpoints + logs to $OUT
 # Keep what comes back in the job's run folder here; to resume on a fresh machine, carry that folder in a call
 # of its own (after the data).
@@ -23,16 +23,16 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 case "${1:-}" in
 prepare)
-    mkdir -p gpu-data/a gpu-data/b .whl
+    mkdir -p gpu-data/a gpu-data/b gpu-data/c .whl
     exclude=$(git rev-parse --git-path info/exclude)
     mkdir -p "$(dirname "$exclude")" && touch "$exclude"
     grep -qx '/gpu-data/' "$exclude" || echo /gpu-data/ >> "$exclude"
     grep -qx '/.whl/' "$exclude" || echo /.whl/ >> "$exclude"
-    half=a  # the training split (tools/split_hdr_train.py), never validation, alternately into two halves
-    for photo in runs/data/train/*; do cp -L "$photo" "gpu-data/$half/"; half=$([ $half = a ] && echo b || echo a); done
+    parts=(a b c); index=0  # the training split (tools/split_hdr_train.py), never validation, dealt into three
+    for photo in runs/data/train/*; do cp -L "$photo" "gpu-data/${parts[index % 3]}/"; index=$((index + 1)); done
     python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
         --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl "OpenEXR==3.5.3"
-    du -sh gpu-data .whl
+    du -sh gpu-data/* .whl
     ;;
 slice)
     job=${2:-}
@@ -46,13 +46,13 @@ slice)
         RUN=${RUN:-runs/a7-rank1}
         args=(design --profile sony-a7-zeiss50-rank1 --doe rank1 --preset fast --steps "${STEPS:-20000}"
               --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
-              --data "${DATA:-gpu-data/a:0.35,gpu-data/b:0.35,procedural:0.3}")
+              --data "${DATA:-gpu-data/a:0.24,gpu-data/b:0.23,gpu-data/c:0.23,procedural:0.3}")
         ;;
     shipped)
         RUN=${RUN:-runs/shipped-gpu}
         args=(finetune --checkpoint hdrcam/checkpoints/simulated-rank1-fast.pt --psf tools/results/shipped-rank1/psf.exr
               --steps "${STEPS:-6000}" --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 1e-4 --seed 17
-              --data "${DATA:-gpu-data/a:0.3,gpu-data/b:0.3,procedural:0.4}")
+              --data "${DATA:-gpu-data/a:0.2,gpu-data/b:0.2,gpu-data/c:0.2,procedural:0.4}")
         ;;
     *)
         echo "usage: $0 slice a7-rank1|shipped [SECONDS]" >&2
