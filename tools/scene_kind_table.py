@@ -21,10 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hdrcam.evaluate.report import HARM_DB  # the generalisation issue's bar
 from hdrcam.io.atomic import write_text_atomic
 from one_line_errors import refuse_existing, run  # tools/ is on sys.path when a tool runs
-
-HARM_DB = 0.3  # the generalisation issue's bar: no photograph more than this below its LDR capture
 
 
 def read_runs(entries: list[str]) -> dict[str, dict[str, float]]:
