@@ -66,8 +66,8 @@ def summary_markdown(rows: list[ScoredImage], description: str, reference: str =
             if method != reference:
                 scored = [row.image for row in rows if row.method == method]
                 worst_images.append(f"{method}: {scored[int(np.argmin(gains))]}")
-        lines.append(f"| {method} | {value['psnr_linear']:.2f} | {gain} | {worst} | {below} | {value['pu21_psnr']:.2f} | "
-                     f"{value['psnr_mu']:.2f} |")
+        lines.append(f"| {method} | {value['psnr_linear']:.2f} | {gain} | {worst} | {below} | "
+                     f"{value['pu21_psnr']:.2f} | {value['psnr_mu']:.2f} |")
     if worst_images:
         lines.append(f"\nWorst image per method: {'; '.join(worst_images)}.")
     return "\n".join(lines) + "\n"

@@ -67,7 +67,8 @@ def test_the_summary_names_each_methods_worst_image_and_counts_the_harmed_ones()
         return ScoredImage(image, method, {"psnr_linear": psnr, "pu21_psnr": 0.0, "psnr_mu": 0.0}, 0.015)
 
     gains = {"a": 1.0, "b": -0.5, "c": -0.2}  # b is harmed, c is within the 0.3 dB bar
-    rows = [entry for image, gain in gains.items() for entry in (row(image, "ldr", 40.0), row(image, "hdrcam", 40 + gain))]
+    rows = [entry for image, gain in gains.items()
+            for entry in (row(image, "ldr", 40.0), row(image, "hdrcam", 40.0 + gain))]
     summary = summary_markdown(rows, "test")
     assert "| hdrcam | 40.10 | +0.10 | -0.50 | 1 |" in summary
     assert "| ldr | 40.00 | +0.00 | +0.00 | 0 |" in summary
