@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The generalisation issue's four measurements, as tools/results/real-data/README.md records them: validation
+# photographs, procedural night scenes, training photographs (evaluate, one thread each) and the RAW path
+# (tools/bench_raw_path.py). Each run's summary.md shows the mean gain over the LDR capture, the worst image
+# and how many fall more than 0.3 dB below it; OUT/seconds.txt has the wall times.
+# Usage: bash tools/measure_generalisation.sh OUT [--checkpoint CKPT] [--partner CKPT | --no-partner]
+# (runs/data from `python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data`)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:?usage: $0 OUT [--checkpoint CKPT] [--partner CKPT | --no-partner]}; shift
+[ -d runs/data/val ] || { echo "runs/data is missing: python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data" >&2; exit 2; }
+[ -e "$out" ] && { echo "$out exists: choose another OUT" >&2; exit 1; }
+mkdir -p "$out"
+export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
+for run in "val --data runs/data/val --size 512" "night --data procedural --count 16" \
+           "train --data runs/data/train --size 512"; do
+    read -r name data <<< "$run"
+    started=$(date +%s.%N)
+    .venv/bin/hdrcam evaluate $data "$@" --out "$out/$name" > "$out/$name.log" 2>&1
+    echo "$name $(python3 -c "print(round($(date +%s.%N) - $started, 1))") s" >> "$out/seconds.txt"
+    grep -E "^\| [^ ]+ \| [0-9]" "$out/$name/summary.md" | grep -vE "^\| (ldr|hdrcnn-blend|[^ ]+-network) \|" \
+        | sed "s/^/$name: /"  # the checkpoints' full-pipeline rows
+done
+started=$(date +%s.%N)
+.venv/bin/python tools/bench_raw_path.py runs/data/val "$@" --out "$out/raw-path.md" > "$out/raw.log" 2>&1
+echo "raw $(python3 -c "print(round($(date +%s.%N) - $started, 1))") s" >> "$out/seconds.txt"
+grep '\*\*mean\*\*' "$out/raw-path.md" | sed "s/^/raw path: /"
