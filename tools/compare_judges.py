@@ -29,7 +29,8 @@ import hdrcam.evaluate.scoring as scoring
 import hdrcam.recon.consistency as consistency
 from hdrcam.data.scenes import SceneSource
 from hdrcam.io.atomic import write_text_atomic
-from hdrcam.evaluate.report import HARM_DB, gains_over
+from hdrcam.evaluate.metrics import HARM_DB
+from hdrcam.evaluate.report import gains_over
 from hdrcam.train.checkpoint import load_model
 from one_line_errors import refuse_existing, run  # tools/ is on sys.path when a tool runs
 

@@ -4,7 +4,8 @@
 # (tools/bench_raw_path.py). Each run's summary.md shows the mean gain over the LDR capture, the worst image
 # and how many fall more than 0.3 dB below it; OUT/seconds.txt has the wall times.
 # Usage: bash tools/measure_generalisation.sh OUT [--checkpoint CKPT] [--partner CKPT | --no-partner]
-# (runs/data from `python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data`)
+# Paths are taken from the repository root. (runs/data from `python tools/split_hdr_train.py
+# ../shared/data/hdr-train --out runs/data`.) A failed step stops the script: its log is OUT/NAME.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: $0 OUT [--checkpoint CKPT] [--partner CKPT | --no-partner]}; shift
@@ -19,7 +20,7 @@ for run in "val --data runs/data/val --size 512" "night --data procedural --coun
     .venv/bin/hdrcam evaluate $data "$@" --out "$out/$name" > "$out/$name.log" 2>&1
     echo "$name $(python3 -c "print(round($(date +%s.%N) - $started, 1))") s" >> "$out/seconds.txt"
     grep -E "^\| [^ ]+ \| [0-9]" "$out/$name/summary.md" | grep -vE "^\| (ldr|hdrcnn-blend|[^ ]+-network) \|" \
-        | sed "s/^/$name: /"  # the checkpoints' full-pipeline rows
+        | sed "s/^/$name: /" || true  # the checkpoints' full-pipeline rows
 done
 started=$(date +%s.%N)
 .venv/bin/python tools/bench_raw_path.py runs/data/val "$@" --out "$out/raw-path.md" > "$out/raw.log" 2>&1

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hdrcam.evaluate.report import HARM_DB  # the generalisation issue's bar
+from hdrcam.evaluate.metrics import HARM_DB  # the generalisation issue's bar
 from hdrcam.io.atomic import write_text_atomic
 from one_line_errors import refuse_existing, run  # tools/ is on sys.path when a tool runs
 

@@ -3,8 +3,8 @@
 The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, about a quarter
 smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
 attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
-most PREVIEW_SIDE_PX on its longer side and turned upright. The preview is made while the EXR is written (on a
-second thread: OpenEXR releases the GIL) and written once the EXR is, so a failed EXR leaves no new preview."""
+most PREVIEW_SIDE_PX on its longer side and turned upright. The preview is made on a second thread while the EXR
+is written (OpenEXR releases the GIL) and written once the EXR is: a failed or interrupted EXR leaves no file."""
 
 from __future__ import annotations
 
@@ -58,14 +58,16 @@ def run(arguments: argparse.Namespace) -> int:
     channels = {"RGB": image.rgb, "clipped": image.clipped}
     if image.variance is not None:
         channels["variance"] = image.variance
-    with ThreadPoolExecutor(1) as writer:
-        exr_written = writer.submit(write_exr_channels, out, channels, attributes=image.attributes(),
-                                    half=arguments.half, overwrite=arguments.overwrite,
-                                    compression=arguments.compression)
+
+    def preview_png() -> bytes:
         upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
-        png = encoded_png(upright, preview)
-        exr_written.result()
-    write_bytes_atomic(preview, png, overwrite=arguments.overwrite)
+        return encoded_png(upright, preview)
+
+    with ThreadPoolExecutor(1) as previewer:  # the EXR on this thread, where an interrupt discards it unfinished
+        png = previewer.submit(preview_png)
+        write_exr_channels(out, channels, attributes=image.attributes(), half=arguments.half,
+                           overwrite=arguments.overwrite, compression=arguments.compression)
+        write_bytes_atomic(preview, png.result(), overwrite=arguments.overwrite)
     seconds = time.perf_counter() - started
     merge = image.merge
     print(f"{len(image.frame_metadata)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "

@@ -74,7 +74,8 @@ class SceneSource:
         return _scaled(crop, fraction, margin_px)
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
-        """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1."""
+        """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1; each named
+        (night-NNN, or the file's stem - its name where two files share a stem)."""
         scenes = []
         if self.folder is None:
             for index in range(count):
@@ -82,10 +83,12 @@ class SceneSource:
                 scenes.append((f"night-{index:03d}", _scaled(self._raw_crop(size_px + 2 * margin_px, rng),
                                                              TEST_CLIPPED_FRACTION, margin_px)))
         else:
+            stems = [path.stem for path in self.folder.files]
             for index, path in enumerate(self.folder.files):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
                 crop = saturated_crop(self.folder.images[index], size_px + 2 * margin_px, rng, preference=1.0)
-                scenes.append((path.stem, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
+                name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
+                scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
         return scenes
 
 

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+HARM_DB = 0.3  # an image more than this below its LDR capture was harmed (the generalisation issue's bar)
+
 PEAK_RADIANCE = 256.0
 CANDELA_PER_UNIT = 39.0625  # cd/m^2 of relative radiance 1.0
 MU = 5000.0

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from hdrcam.evaluate.metrics import HARM_DB
 from hdrcam.evaluate.scoring import Example, ScoredImage
 from hdrcam.io.atomic import write_text_atomic
 from hdrcam.io.jpeg import write_jpeg
 from hdrcam.preview import log_average_luminance, tonemap_rgb
 
 METRICS = ("psnr_linear", "pu21_psnr", "psnr_mu")
-HARM_DB = 0.3  # an image more than this below its LDR capture was harmed (the generalisation issue's bar)
 OUTPUT_NAMES = ("metrics.csv", "summary.md", "examples.jpg")
 
 
@@ -38,10 +38,17 @@ def write_metrics_csv(path: Path, rows: list[ScoredImage], *, overwrite: bool = 
     write_text_atomic(path, buffer.getvalue(), overwrite=overwrite)
 
 
-def gains_over(rows: list[ScoredImage], method: str, reference: str = "ldr") -> np.ndarray:
-    """Per-image linear-PSNR gain (dB) of ``method`` over ``reference``, in the order the images were scored."""
+def paired_gains(rows: list[ScoredImage], method: str, reference: str = "ldr") -> list[tuple[str, float]]:
+    """(image, linear-PSNR gain in dB of ``method`` over ``reference``) for each image both were scored on, in
+    the order the images were scored."""
     base = {row.image: row.metrics["psnr_linear"] for row in rows if row.method == reference}
-    return np.array([row.metrics["psnr_linear"] - base[row.image] for row in rows if row.method == method])
+    return [(row.image, row.metrics["psnr_linear"] - base[row.image]) for row in rows
+            if row.method == method and row.image in base]
+
+
+def gains_over(rows: list[ScoredImage], method: str, reference: str = "ldr") -> np.ndarray:
+    """The gains of :func:`paired_gains` alone (dB)."""
+    return np.array([gain for _, gain in paired_gains(rows, method, reference)])
 
 
 def summary_markdown(rows: list[ScoredImage], description: str, reference: str = "ldr") -> str:
@@ -50,22 +57,21 @@ def summary_markdown(rows: list[ScoredImage], description: str, reference: str =
     means = method_means(rows)
     images = list(dict.fromkeys(row.image for row in rows))
     lines = [f"# Evaluation\n\n{description}\n\n{len(images)} test images. Means over images; "
-             f"'vs {reference}' is the linear-PSNR gain over the row '{reference}'; 'worst' is the least gain of "
-             f"any image, 'below' the count of images more than {HARM_DB} dB below '{reference}'.\n",
+             f"'vs {reference}' is the mean linear-PSNR gain over the row '{reference}' on the images both were "
+             f"scored on, 'worst' the least gain of any image, 'below' the count of images more than {HARM_DB} dB "
+             f"below '{reference}'.\n",
              f"| method | PSNR linear (dB, peak 2^8) | vs {reference} (dB) | worst vs {reference} (dB) | below | "
              "PU21-PSNR (dB) | PSNR-mu (dB) |",
              "|---|---|---|---|---|---|---|"]
-    base = means.get(reference, {}).get("psnr_linear")
     worst_images = []
     for method, value in means.items():
+        pairs = paired_gains(rows, method, reference)
         gain = worst = below = ""
-        if base is not None:
-            gains = gains_over(rows, method, reference)
-            gain, worst, below = (f"{value['psnr_linear'] - base:+.2f}", f"{gains.min():+.2f}",
-                                  str(int((gains < -HARM_DB).sum())))
+        if pairs:
+            gains = np.array([gain_db for _, gain_db in pairs])
+            gain, worst, below = f"{gains.mean():+.2f}", f"{gains.min():+.2f}", str(int((gains < -HARM_DB).sum()))
             if method != reference:
-                scored = [row.image for row in rows if row.method == method]
-                worst_images.append(f"{method}: {scored[int(np.argmin(gains))]}")
+                worst_images.append(f"{method}: {min(pairs, key=lambda pair: pair[1])[0]}")
         lines.append(f"| {method} | {value['psnr_linear']:.2f} | {gain} | {worst} | {below} | "
                      f"{value['pu21_psnr']:.2f} | {value['psnr_mu']:.2f} |")
     if worst_images:

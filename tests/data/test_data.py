@@ -183,3 +183,14 @@ def test_a_luminance_only_exr_is_read_as_grey(tmp_path):
     assert image.shape == (6, 5, 3)
     for channel in range(3):
         np.testing.assert_array_equal(image[..., channel], luminance)
+
+
+def test_test_scenes_of_files_sharing_a_stem_keep_distinct_names(tmp_path):
+    import cv2
+
+    image = np.random.default_rng(1).uniform(0.01, 4.0, (64, 64, 3)).astype(np.float32)
+    _write_exr(tmp_path / "sun.exr", image)
+    cv2.imwrite(str(tmp_path / "sun.hdr"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    _write_exr(tmp_path / "moon.exr", image)
+    names = [name for name, _ in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
+    assert names == ["moon", "sun.exr", "sun.hdr"]

@@ -73,3 +73,16 @@ def test_the_summary_names_each_methods_worst_image_and_counts_the_harmed_ones()
     assert "| hdrcam | 40.10 | +0.10 | -0.50 | 1 |" in summary
     assert "| ldr | 40.00 | +0.00 | +0.00 | 0 |" in summary
     assert "Worst image per method: hdrcam: b." in summary
+
+
+def test_the_summary_compares_a_method_only_on_the_images_it_shares_with_the_reference():
+    from hdrcam.evaluate.report import summary_markdown
+    from hdrcam.evaluate.scoring import ScoredImage
+
+    def row(image, method, psnr):
+        return ScoredImage(image, method, {"psnr_linear": psnr, "pu21_psnr": 0.0, "psnr_mu": 0.0}, 0.015)
+
+    rows = [row("a", "ldr", 40.0), row("a", "mine", 41.0), row("b", "ldr", 30.0), row("c", "mine", 60.0)]
+    summary = summary_markdown(rows, "test")
+    assert "| mine | 50.50 | +1.00 | +1.00 | 0 |" in summary  # c has no reference: not a gain of +25
+    assert "Worst image per method: mine: a." in summary

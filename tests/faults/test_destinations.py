@@ -127,3 +127,30 @@ def test_fuse_publishes_no_preview_when_its_exr_fails(workspace, tmp_path, capsy
     out = tmp_path / "out"
     assert_failed_with_one_line(run(command_lines(workspace, out)["fuse"], capsys), 1, "no space left")
     assert not (out / "fused.png").exists() and not (out / "fused.exr").exists()
+
+
+def test_fuse_stopped_while_writing_its_exr_leaves_no_output(workspace, tmp_path, capsys, monkeypatch):
+    """The EXR is written on the main thread: a signal there discards it unfinished (the preview, made on a
+    second thread meanwhile, is never published). Written on a worker, it would be published after the
+    command had reported the interrupt, when the interpreter waits for its threads."""
+    import signal
+    import threading
+    import time
+
+    from hdrcam.io import exr
+
+    write = exr.write_exr_channels
+
+    def stopped_while_writing(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(2)  # the signal handler interrupts this on the main thread
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(exr, "write_exr_channels", stopped_while_writing)
+    out = tmp_path / "out"
+    assert_failed_with_one_line(run(command_lines(workspace, out)["fuse"], capsys), 128 + signal.SIGTERM, "SIGTERM")
+    for thread in threading.enumerate():  # what the interpreter would wait for before the process ends
+        if thread.name.startswith("ThreadPoolExecutor"):
+            thread.join(timeout=30)
+    assert not (out / "fused.png").exists() and not (out / "fused.exr").exists()
+    assert temporaries(tmp_path) == []

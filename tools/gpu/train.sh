@@ -12,8 +12,8 @@
 # a call carried stays while the machine is warm. So: two calls carry gpu-data/a and gpu-data/b (about 18 MiB
 # each) and run `true`; the third carries gpu-data/c and .whl and runs a slice; later calls carry nothing and run
 #   bash tools/gpu/train.sh slice JOB 540   # trains for 540 s, copies the checkpoints + logs to $OUT
-# Keep what comes back in the job's run folder here; to resume on a fresh machine, carry that folder in a call
-# of its own (after the data).
+# What comes back has the run folder's layout (checkpoint.pt, partner/checkpoint.pt, ...): copy it into the run
+# folder here; to resume on a fresh machine, carry that folder in a call of its own (after the data).
 # a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py. shipped: measure
 # RUN/model.pt with RUN/model-partner.pt as tools/results/real-data/README.md measures a pair, against a rule
 # written first, then ship with tools/ship_checkpoint.py.
@@ -43,13 +43,13 @@ slice)
     export PYTHONPATH=$PWD:${PYTHONPATH:-}
     case "$job" in
     a7-rank1)
-        RUN=${RUN:-runs/a7-rank1}
+        RUN=${RUN:-runs/a7-rank1}; RUN=${RUN%/}
         args=(design --profile sony-a7-zeiss50-rank1 --doe rank1 --preset fast --steps "${STEPS:-20000}"
               --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
               --data "${DATA:-gpu-data/a:0.24,gpu-data/b:0.23,gpu-data/c:0.23,procedural:0.3}")
         ;;
     shipped)
-        RUN=${RUN:-runs/shipped-gpu}
+        RUN=${RUN:-runs/shipped-gpu}; RUN=${RUN%/}
         args=(finetune --checkpoint hdrcam/checkpoints/simulated-rank1-fast.pt --psf tools/results/shipped-rank1/psf.exr
               --steps "${STEPS:-6000}" --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 1e-4 --seed 17
               --data "${DATA:-gpu-data/a:0.2,gpu-data/b:0.2,gpu-data/c:0.2,procedural:0.4}")
@@ -64,11 +64,14 @@ slice)
         mv "$RUN" "$RUN.unsaved-$(date +%s)"  # kept aside; the run starts again
     fi
     [ -f "$RUN/checkpoint.pt" ] && args+=(--resume)
-    timeout "${3:-540}" python3 -m hdrcam "${args[@]}" || [ $? -eq 124 ]  # a slice ends by its time limit
-    if [ -n "${OUT:-}" ]; then
-        for saved in "$RUN/checkpoint.pt" "$RUN/log.jsonl"; do [ -f "$saved" ] && cp "$saved" "$OUT/"; done
-        [ -f "$RUN/partner/checkpoint.pt" ] && cp "$RUN/partner/checkpoint.pt" "$OUT/partner-checkpoint.pt"
-        for model in "$RUN"/model*.pt; do [ -f "$model" ] && cp "$model" "$OUT/"; done
+    status=0
+    timeout "${3:-540}" python3 -m hdrcam "${args[@]}" || status=$?
+    [ $status -eq 0 ] || [ $status -eq 124 ] || exit $status  # a slice ends by its time limit (124)
+    if [ -n "${OUT:-}" ]; then  # what a resume needs, in the run folder's layout
+        for saved in checkpoint.pt log.jsonl config.json partner/checkpoint.pt partner/log.jsonl partner/config.json \
+                     model.pt model-partner.pt; do
+            if [ -f "$RUN/$saved" ]; then mkdir -p "$OUT/$(dirname "$saved")"; cp "$RUN/$saved" "$OUT/$saved"; fi
+        done
     fi
     tail -n 1 "$RUN/log.jsonl" 2>/dev/null || echo "no step logged yet"
     ;;
