@@ -67,7 +67,7 @@ def measure(bracket: Path, repeats: int, scratch: Path) -> list[str]:
             scratch / "library.exr", {"RGB": image.rgb, "clipped": image.clipped}, overwrite=True, compression="none")))
         runs["+ PNG preview"].append(seconds(lambda: write_png(
             scratch / "library.png", tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), overwrite=True)))
-        del image
+        image = None  # freed before the command runs with its own images
         runs["+ start-up (`hdrcam fuse --help`)"].append(seconds(lambda: subprocess.run(
             [hdrcam_command, "fuse", "--help"], check=True, stdout=subprocess.DEVNULL)))
         runs["hdrcam fuse (command)"].append(seconds(lambda: subprocess.run(command, check=True,
