@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -115,17 +114,21 @@ def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, heigh
 def _luminance_chroma_to_rgb(luminance: np.ndarray, red_difference: np.ndarray, blue_difference: np.ndarray,
                              chromaticities) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Invert OpenEXR's RgbaYca encoding: RY = (R - Y) / Y, BY = (B - Y) / Y, Y = w . RGB."""
-    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
-        warnings.simplefilter("ignore")
-        import colour
-
-    values = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
-    primaries, whitepoint = values[:3], values[3]
-    weight_red, weight_green, weight_blue = colour.normalised_primary_matrix(primaries, whitepoint)[1]
+    weight_red, weight_green, weight_blue = luminance_weights(chromaticities)
     red = (red_difference + 1.0) * luminance
     blue = (blue_difference + 1.0) * luminance
     green = (luminance - weight_red * red - weight_blue * blue) / weight_green
     return (red.astype(np.float32), green.astype(np.float32), blue.astype(np.float32))
+
+
+def luminance_weights(chromaticities) -> np.ndarray:
+    """(3,) weights of R, G, B in the luminance Y of the primaries and white point ``chromaticities`` (x, y of
+    red, green, blue, white): the Y row of the normalised primary matrix (SMPTE RP 177), as OpenEXR's RgbaYca
+    encoding computes it. In numpy rather than colour-science's normalised_primary_matrix (equal to 1e-12, see
+    the tests): that import takes about a second, and the training path runs where colour-science is absent."""
+    xy = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
+    xyz = np.column_stack([xy[:, 0] / xy[:, 1], np.ones(4), (1.0 - xy.sum(axis=1)) / xy[:, 1]])  # each at Y = 1
+    return np.linalg.solve(xyz[:3].T, xyz[3])  # primaries' scales that sum to the white: their Y, as Y = 1 each
 
 
 def default_channel_names(pixels: np.ndarray) -> tuple[str, ...]:

@@ -28,6 +28,24 @@ def test_luminance_chroma_file_converts_to_the_rgb_it_encodes(tmp_path):
     np.testing.assert_allclose(read_exr(tmp_path / "yc.exr").rgb(), rgb, rtol=1e-4)
 
 
+@pytest.mark.parametrize("chromaticities", [
+    (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290),  # Rec. 709 / D65
+    (0.7347, 0.2653, 0.0, 1.0, 0.0001, -0.077, 0.32168, 0.33767),  # ACES AP0
+    (0.680, 0.320, 0.265, 0.690, 0.150, 0.060, 0.314, 0.351),  # DCI-P3
+])
+def test_luminance_weights_are_the_normalised_primary_matrixs_y_row(chromaticities):
+    import warnings
+
+    from hdrcam.io.exr import luminance_weights
+
+    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent
+        warnings.simplefilter("ignore")
+        import colour
+    values = np.reshape(chromaticities, (4, 2))
+    np.testing.assert_allclose(luminance_weights(chromaticities),
+                               colour.normalised_primary_matrix(values[:3], values[3])[1], rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("half", [False, True])
 def test_round_trip_rgb_and_single_channel_with_attributes(tmp_path, half):
     rgb = np.random.default_rng(1).uniform(0, 300, (5, 7, 3)).astype(np.float32)
