@@ -7,10 +7,11 @@
 #
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
 #   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs, 55 MB in three
-#                                     #    parts), .whl/openexr-*.whl (1.7 MB)
+#                                     #    parts), gpu-data/d (../shared/data/hdr, 11 MB), .whl/openexr-*.whl
 # On the device (the `run` tool): a call carries at most 64 MiB together with the 34 MiB working tree, and what
-# a call carried stays while the machine is warm. So: two calls carry gpu-data/a and gpu-data/b (about 18 MiB
-# each) and run `true`; the third carries gpu-data/c and .whl and runs a slice; later calls carry nothing and run
+# a call carried stays while the machine is warm. So: three calls carry gpu-data/a, gpu-data/b and gpu-data/c
+# (about 18 MiB each) and run `true`; the fourth carries gpu-data/d and .whl and runs a slice; later calls carry
+# nothing and run
 #   bash tools/gpu/train.sh slice JOB 540   # trains for 540 s, copies the checkpoints + logs to $OUT
 # What comes back has the run folder's layout (checkpoint.pt, partner/checkpoint.pt, ...): copy it into the run
 # folder here; to resume on a fresh machine, carry that folder in a call of its own (after the data).
@@ -23,13 +24,14 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 case "${1:-}" in
 prepare)
-    mkdir -p gpu-data/a gpu-data/b gpu-data/c .whl
+    mkdir -p gpu-data/a gpu-data/b gpu-data/c gpu-data/d .whl
     exclude=$(git rev-parse --git-path info/exclude)
     mkdir -p "$(dirname "$exclude")" && touch "$exclude"
     grep -qx '/gpu-data/' "$exclude" || echo /gpu-data/ >> "$exclude"
     grep -qx '/.whl/' "$exclude" || echo /.whl/ >> "$exclude"
     parts=(a b c); index=0  # the training split (tools/split_hdr_train.py), never validation, dealt into three
     for photo in runs/data/train/*; do cp -L "$photo" "gpu-data/${parts[index % 3]}/"; index=$((index + 1)); done
+    cp ../shared/data/hdr/*.exr gpu-data/d/  # the openexr-images photographs, as the shipped network's mixture
     python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
         --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl "OpenEXR==3.5.3"
     du -sh gpu-data/* .whl
@@ -52,7 +54,7 @@ slice)
         RUN=${RUN:-runs/shipped-gpu}; RUN=${RUN%/}
         args=(finetune --checkpoint hdrcam/checkpoints/simulated-rank1-fast.pt --psf tools/results/shipped-rank1/psf.exr
               --steps "${STEPS:-6000}" --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 1e-4 --seed 17
-              --data "${DATA:-gpu-data/a:0.2,gpu-data/b:0.2,gpu-data/c:0.2,procedural:0.4}")
+              --data "${DATA:-gpu-data/a:0.18,gpu-data/b:0.18,gpu-data/c:0.19,gpu-data/d:0.1,procedural:0.35}")
         ;;
     *)
         echo "usage: $0 slice a7-rank1|shipped [SECONDS]" >&2
