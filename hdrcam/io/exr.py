@@ -83,8 +83,11 @@ def read_exr(path: Path) -> ExrImage:
                 for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
     if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
         chromaticities = header.get("chromaticities", _REC709_CHROMATICITIES)
-        red, green, blue = _luminance_chroma_to_rgb(channels.pop("Y"), channels.pop("RY"),
-                                                    channels.pop("BY"), chromaticities)
+        try:
+            red, green, blue = _luminance_chroma_to_rgb(channels.pop("Y"), channels.pop("RY"),
+                                                        channels.pop("BY"), chromaticities)
+        except ValueError as error:
+            raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
     return ExrImage(channels=channels, attributes=attributes)
@@ -124,11 +127,20 @@ def _luminance_chroma_to_rgb(luminance: np.ndarray, red_difference: np.ndarray, 
 def luminance_weights(chromaticities) -> np.ndarray:
     """(3,) weights of R, G, B in the luminance Y of the primaries and white point ``chromaticities`` (x, y of
     red, green, blue, white): the Y row of the normalised primary matrix (SMPTE RP 177), as OpenEXR's RgbaYca
-    encoding computes it. In numpy rather than colour-science's normalised_primary_matrix (equal to 1e-12, see
-    the tests): that import takes about a second, and the training path runs where colour-science is absent."""
+    encoding computes it (Imf::RGBtoXYZ): each primary's x, y, z scaled so the three sum to the white's XYZ at
+    Y = 1, its weight the scaled y (no division by a primary's y: CIE XYZ's own primaries give (0, 1, 0)).
+    In numpy rather than colour-science (equal to its normalised_primary_matrix to 1e-12, see the tests): that
+    import takes about a second, and the training path runs where colour-science is absent. ValueError for a
+    white point with y <= 0 or primaries on one line."""
     xy = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
-    xyz = np.column_stack([xy[:, 0] / xy[:, 1], np.ones(4), (1.0 - xy.sum(axis=1)) / xy[:, 1]])  # each at Y = 1
-    return np.linalg.solve(xyz[:3].T, xyz[3])  # primaries' scales that sum to the white: their Y, as Y = 1 each
+    (white_x, white_y) = xy[3]
+    if not np.all(np.isfinite(xy)) or white_y <= 0:
+        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the white point needs y > 0")
+    primaries = np.column_stack([xy[:3, 0], xy[:3, 1], 1.0 - xy[:3].sum(axis=1)]).T  # columns: x, y, z
+    white = np.array([white_x / white_y, 1.0, (1.0 - white_x - white_y) / white_y])
+    if abs(np.linalg.det(primaries)) < 1e-12:
+        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the primaries lie on one line")
+    return np.linalg.solve(primaries, white) * xy[:3, 1]
 
 
 def default_channel_names(pixels: np.ndarray) -> tuple[str, ...]:

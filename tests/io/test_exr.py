@@ -46,6 +46,25 @@ def test_luminance_weights_are_the_normalised_primary_matrixs_y_row(chromaticiti
                                colour.normalised_primary_matrix(values[:3], values[3])[1], rtol=0, atol=1e-12)
 
 
+def test_luminance_weights_of_primaries_on_the_axes_need_no_division_by_their_y():
+    from hdrcam.io.exr import luminance_weights
+
+    cie_xyz = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1 / 3, 1 / 3)  # CIE XYZ's own primaries, equal-energy white
+    np.testing.assert_allclose(luminance_weights(cie_xyz), [0.0, 1.0, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("chromaticities", [
+    (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.0),  # white y = 0
+    (0.2, 0.2, 0.3, 0.3, 0.4, 0.4, 0.3127, 0.3290),  # primaries on one line
+])
+def test_a_luminance_chroma_file_with_unusable_chromaticities_is_an_input_error(tmp_path, chromaticities):
+    y = np.ones((4, 4), np.float32)
+    header = {"type": OpenEXR.scanlineimage, "chromaticities": chromaticities}
+    OpenEXR.File(header, {"Y": y, "RY": 0 * y, "BY": 0 * y}).write(str(tmp_path / "yc.exr"))
+    with pytest.raises(InputError, match="chromaticities"):
+        read_exr(tmp_path / "yc.exr")
+
+
 @pytest.mark.parametrize("half", [False, True])
 def test_round_trip_rgb_and_single_channel_with_attributes(tmp_path, half):
     rgb = np.random.default_rng(1).uniform(0, 300, (5, 7, 3)).astype(np.float32)

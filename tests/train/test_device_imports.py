@@ -5,6 +5,7 @@ luminance-chroma EXR (which once needed colour-science)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -51,7 +52,9 @@ def test_training_imports_nothing_a_gpu_machine_lacks(command, tmp_path):
     (tmp_path / "runner.py").write_text(RUNNER)
     arguments = [*command, "--steps", "1", "--crop", "64", "--batch", "1",
                  "--data", f"{photographs}:0.5,procedural:0.5", "--out", str(tmp_path / "run")]
+    root = Path(__file__).resolve().parents[2]
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
     result = subprocess.run([sys.executable, str(tmp_path / "runner.py"), *arguments], capture_output=True, text=True,
-                            timeout=300, cwd=Path(__file__).resolve().parents[2])
+                            timeout=300, cwd=root, env=environment)
     assert result.returncode == 0, result.stderr[-2000:]
     assert (tmp_path / "run" / "model.pt").is_file()

@@ -24,6 +24,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 case "${1:-}" in
 prepare)
+    rm -rf gpu-data  # made here from the current split alone: no photograph of an earlier split stays
     mkdir -p gpu-data/a gpu-data/b gpu-data/c gpu-data/d .whl
     exclude=$(git rev-parse --git-path info/exclude)
     mkdir -p "$(dirname "$exclude")" && touch "$exclude"
@@ -31,7 +32,7 @@ prepare)
     grep -qx '/.whl/' "$exclude" || echo /.whl/ >> "$exclude"
     parts=(a b c); index=0  # the training split (tools/split_hdr_train.py), never validation, dealt into three
     for photo in runs/data/train/*; do cp -L "$photo" "gpu-data/${parts[index % 3]}/"; index=$((index + 1)); done
-    cp ../shared/data/hdr/*.exr gpu-data/d/  # the openexr-images photographs, as the shipped network's mixture
+    cp ../shared/data/hdr/*.exr gpu-data/d/  # the openexr-images photographs, in the shipped network's mixture
     python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
         --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl "OpenEXR==3.5.3"
     du -sh gpu-data/* .whl
@@ -43,18 +44,24 @@ slice)
         export PYTHONPATH=/tmp/site:${PYTHONPATH:-}
     fi
     export PYTHONPATH=$PWD:${PYTHONPATH:-}
+    photographs() {  # "gpu-data/a:W,gpu-data/b:W,gpu-data/c:W": the share $1 split in proportion to the parts' files
+        local a b c
+        a=$(ls gpu-data/a | wc -l); b=$(ls gpu-data/b | wc -l); c=$(ls gpu-data/c | wc -l)
+        python3 -c "import sys; s, *n = map(float, sys.argv[1:]); w = [s * k / sum(n) for k in n]
+print(','.join(f'gpu-data/{p}:{x:.6f}' for p, x in zip('abc', w)))" "$1" "$a" "$b" "$c"
+    }
     case "$job" in
     a7-rank1)
         RUN=${RUN:-runs/a7-rank1}; RUN=${RUN%/}
         args=(design --profile sony-a7-zeiss50-rank1 --doe rank1 --preset fast --steps "${STEPS:-20000}"
               --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
-              --data "${DATA:-gpu-data/a:0.24,gpu-data/b:0.23,gpu-data/c:0.23,procedural:0.3}")
+              --data "${DATA:-$(photographs 0.7),procedural:0.3}")
         ;;
     shipped)
         RUN=${RUN:-runs/shipped-gpu}; RUN=${RUN%/}
         args=(finetune --checkpoint hdrcam/checkpoints/simulated-rank1-fast.pt --psf tools/results/shipped-rank1/psf.exr
               --steps "${STEPS:-6000}" --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 1e-4 --seed 17
-              --data "${DATA:-gpu-data/a:0.18,gpu-data/b:0.18,gpu-data/c:0.19,gpu-data/d:0.1,procedural:0.35}")
+              --data "${DATA:-$(photographs 0.6),gpu-data/d:0.1,procedural:0.3}")  # the shipped network's mixture
         ;;
     *)
         echo "usage: $0 slice a7-rank1|shipped [SECONDS]" >&2
