@@ -92,6 +92,6 @@ def run(arguments: argparse.Namespace) -> int:
                         + ", ".join(paired) + ".")
     write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
     print(summary_markdown(rows, description), end="")
-    print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/metrics.csv, summary.md, "
-          "examples.jpg")
+    written = "metrics.csv, summary.md" + (", examples.jpg" if examples else "")
+    print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/{written}")
     return 0
