@@ -114,13 +114,13 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
 def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray]], bounds_dn: dict[int, float]) -> np.ndarray:
     """Per pair k of ``bounds_dn``: (count, sum of the shorter, sum of the longer frame's signal) over a strip's
     kept pixels of that pair (``strip_kept[k]``: both frames' float32 signals) whose shorter-frame signal is
-    below ``bounds_dn[k]``, summed in float64."""
+    below ``bounds_dn[k]``, summed in float64 (einsum casting to float64 as it goes)."""
     totals = np.zeros((len(strip_kept), 3), np.float64)
     for k, bound in bounds_dn.items():
         shorter, longer = strip_kept[k]
-        below = np.less(shorter, bound)
-        totals[k] = (np.count_nonzero(below), shorter[below].sum(dtype=np.float64),
-                     longer[below].sum(dtype=np.float64))
+        below = np.less(shorter, bound).view(np.uint8)  # as 0 / 1 weights: a third of a selection's time
+        totals[k] = (np.count_nonzero(below), np.einsum("i,i->", shorter, below, dtype=np.float64),
+                     np.einsum("i,i->", longer, below, dtype=np.float64))
     return totals
 
 

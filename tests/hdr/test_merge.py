@@ -167,3 +167,42 @@ def test_a_longer_frame_that_is_no_brighter_keeps_the_labelled_ratio():
         exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 15000.0, 3.0, notes, pool)
     assert exposures[1] / exposures[0] == pytest.approx(4.0)
     assert "using the labelled ratio" in notes[0]
+
+
+def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
+    """Nine frames 1 EV apart (the A7's longest bracket) need a usable-frame mask wider than 8 bits (a uint8 one
+    overflowed); noise-free frames made from a known radiance ramp (1 to 1000, relative units) merge back to it
+    within the 14-bit quantisation, each frame used exactly where it and its neighbours are unclipped."""
+    import dataclasses
+
+    import cv2
+
+    from hdrcam.io.raw import RawFrame
+
+    template = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0]
+    meta = template.metadata
+    black, white = 512.0, meta.white_level_dn
+    assert np.all(meta.black_level_tile() == black)
+    radiance = np.geomspace(1.0, 1000.0, template.bayer_dn.size).reshape(template.bayer_dn.shape)
+    exposures = [meta.exposure_s * 2.0 ** k for k in range(9)]
+    frames = []
+    for exposure in exposures:
+        signal_dn = radiance * exposure * (white - black) * meta.iso / 100 + black
+        frames.append(RawFrame(dataclasses.replace(meta, exposure_s=exposure),
+                               np.minimum(np.round(signal_dn), white).astype(np.uint16)))
+    merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    assert merged.usable_frames.dtype == np.uint16 and not merged.clipped_everywhere.any()
+    np.testing.assert_allclose(merged.rate, radiance, rtol=2e-3)
+    for k, frame in enumerate(frames):
+        clipped = (frame.bayer_dn >= black + (white - black) * 0.99).astype(np.uint8)
+        expected = cv2.dilate(clipped, np.ones((3, 3), np.uint8)) == 0
+        np.testing.assert_array_equal((merged.usable_frames >> k) & 1 == 1, expected, err_msg=f"frame {k}")
+    assert merged.usable_frames[0, 0] == 0b111111111 and merged.usable_frames[-1, -1] == 0b11  # 1000 fills frame 1 halfway
+
+
+def test_more_frames_than_the_mask_holds_are_refused():
+    from hdrcam.hdr import merge
+
+    frames = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])
+    with pytest.raises(InputError, match="at most"):
+        merge.merge_bayer(frames * 17, PROFILE.camera, estimate_ratios=False)
