@@ -57,10 +57,16 @@ def _finite_rgb(strip: np.ndarray) -> np.ndarray:
     return rgb
 
 
+def luminance_of(rgb: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance (H x W float32) of linear H x W x 3 float32 RGB, by OpenCV's channel transform: a
+    matrix-vector product by BLAS would wake its own threads, which then spin beside the strips' pool."""
+    return cv2.transform(rgb, REC709_LUMINANCE[None]).reshape(rgb.shape[:-1])
+
+
 def log_average_luminance(hdr_rgb: np.ndarray) -> float:
     """exp(mean(log(Y + 1e-6))) of a linear RGB image (Rec. 709 luminance)."""
     def log_sum(rows: slice) -> float:
-        luminance = _finite_rgb(hdr_rgb[rows]) @ REC709_LUMINANCE
+        luminance = luminance_of(_finite_rgb(hdr_rgb[rows]))
         return float(np.log(luminance.astype(np.float64) + 1e-6).sum())
 
     with ThreadPoolExecutor(worker_threads()) as pool:
@@ -92,7 +98,7 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
 
     def map_strip(rows: slice) -> None:
         rgb = _finite_rgb(hdr_rgb[rows])
-        luminance = rgb @ REC709_LUMINANCE
+        luminance = luminance_of(rgb)
         scaled = luminance * np.float32(key / log_average)
         display_gain = scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12)  # display value per linear unit
         cell = np.minimum(rgb * (display_gain * np.float32(SRGB_TABLE_CELLS))[..., None], SRGB_TABLE_CELLS - 1)
