@@ -60,6 +60,8 @@ def _finite_rgb(strip: np.ndarray) -> np.ndarray:
 def luminance_of(rgb: np.ndarray) -> np.ndarray:
     """Rec. 709 luminance (H x W float32) of linear H x W x 3 float32 RGB, by OpenCV's channel transform: a
     matrix-vector product by BLAS would wake its own threads, which then spin beside the strips' pool."""
+    if rgb.size == 0:  # cv2.transform returns None for an empty image
+        return np.zeros(rgb.shape[:-1], rgb.dtype)
     return cv2.transform(rgb, REC709_LUMINANCE[None]).reshape(rgb.shape[:-1])
 
 

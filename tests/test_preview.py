@@ -67,3 +67,7 @@ def test_tonemap_treats_nan_infinite_and_negative_samples_as_zero_and_leaves_its
     np.testing.assert_array_equal(preview, tonemap_rgb(zeroed))  # the log-average ignores them too
     assert preview[0, 0].tolist() == [0, 0, 0]
     np.testing.assert_array_equal(damaged, before)
+
+
+def test_an_empty_image_tonemaps_to_an_empty_preview():
+    assert tonemap_rgb(np.zeros((10, 0, 3), np.float32), log_average=1.0).shape == (10, 0, 3)

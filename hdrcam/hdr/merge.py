@@ -118,7 +118,8 @@ class _BracketStrips:
     the signal (float32 DN above the frame's own black level - bodies that measure black from the masked border
     declare a slightly different one in every file - or above its dark frame: 2 bytes per sample are read
     instead of a stored float32 copy's 4) and the clipped samples (at or above the clip threshold of their CFA
-    position), alone or dilated by one pixel (from the strip and one row either side)."""
+    position), alone or as the usable samples: unclipped with eight unclipped neighbours (from the strip and one
+    row either side)."""
 
     def __init__(self, frames: list[RawFrame], darks: list[RawFrame | None], threshold_tile_dn: np.ndarray):
         self.frames, self.darks = frames, darks
@@ -250,7 +251,8 @@ def _weighted(rates: list[np.ndarray], times: np.ndarray, usable: list[np.ndarra
         np.divide(t * t, variance_dn2(k), out=weight)
         cv2.accumulate(weight, information, mask=usable[k])
         cv2.accumulateProduct(weight, rate, numerator, mask=usable[k])
-    return np.divide(numerator, cv2.max(information, 1e-30), out=numerator), information
+    # not cv2.max(information, 1e-30): OpenCV takes a 1 x 1 array beside a scalar for the scalar (a 4 x 1 result)
+    return np.divide(numerator, np.maximum(information, np.float32(1e-30)), out=numerator), information
 
 
 def affine(values: np.ndarray, scale: float, offset: float, *, out: np.ndarray) -> np.ndarray:

@@ -66,13 +66,11 @@ def _counts_from(samples_dn: np.ndarray, low_dn: int) -> np.ndarray:
     """int64 counts of each integer value from ``low_dn`` up (index 0: ``low_dn``) among ``samples_dn`` (integer
     data; a CFA position's strided view is copied once, at 2 bytes a sample), by OpenCV's histogram: numpy's
     bincount casts every sample it counts to int64 first, 5x longer on a bright 24 MP frame. Its float32 counts
-    are exact up to 2^24 samples at one value (a pile-up counted one off beyond that changes no decision)."""
+    are exact up to 2^24 samples at one value (beyond, off by a few parts in 10^8: no decision changes)."""
+    if samples_dn.dtype not in (np.uint8, np.uint16):  # other integer types (tests, odd decoders): numpy's, exact
+        return np.bincount(samples_dn[samples_dn >= low_dn].astype(np.int64) - low_dn)
     samples = np.ascontiguousarray(samples_dn)
-    if samples.dtype in (np.uint8, np.uint16):
-        end = int(np.iinfo(samples.dtype).max) + 1
-    else:  # other integer types (tests, odd decoders), as float32: exact below 2^24
-        end = int(samples.max(initial=low_dn)) + 1
-        samples = samples.astype(np.float32)
+    end = int(np.iinfo(samples.dtype).max) + 1
     if end <= low_dn or samples.size == 0:
         return np.zeros(0, np.int64)
     return cv2.calcHist([samples], [0], None, [end - low_dn], [low_dn, end]).ravel().astype(np.int64)

@@ -197,7 +197,8 @@ def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
         clipped = (frame.bayer_dn >= black + (white - black) * 0.99).astype(np.uint8)
         expected = cv2.dilate(clipped, np.ones((3, 3), np.uint8)) == 0
         np.testing.assert_array_equal((merged.usable_frames >> k) & 1 == 1, expected, err_msg=f"frame {k}")
-    assert merged.usable_frames[0, 0] == 0b111111111 and merged.usable_frames[-1, -1] == 0b11  # 1000 fills frame 1 halfway
+    assert merged.usable_frames[0, 0] == 0b111111111  # radiance 1 clips in no frame
+    assert merged.usable_frames[-1, -1] == 0b11  # 1000 fills frame 1 halfway
 
 
 def test_more_frames_than_the_mask_holds_are_refused():
@@ -206,3 +207,20 @@ def test_more_frames_than_the_mask_holds_are_refused():
     frames = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])
     with pytest.raises(InputError, match="at most"):
         merge.merge_bayer(frames * 17, PROFILE.camera, estimate_ratios=False)
+
+
+@pytest.mark.parametrize("shape", [(65, 1), (1, 1)])
+def test_frames_one_pixel_wide_merge(shape):
+    """A strip of one pixel (a 1-pixel-wide frame of 65 rows: its last strip is 1 x 1) merges to the rate that
+    made it (OpenCV once took a 1 x 1 array beside a scalar for the scalar)."""
+    import dataclasses
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    signal_dn = np.linspace(500, 1500, shape[0] * shape[1]).round().reshape(shape)  # no value repeats: no pile-up
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=meta.exposure_s * 4 ** k),
+                       (512 + signal_dn * 4 ** k).astype(np.uint16)) for k in range(2)]
+    merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    expected = signal_dn / meta.exposure_s / (meta.white_level_dn - 512)  # relative units at ISO 100
+    np.testing.assert_allclose(merged.rate, expected, rtol=1e-5)
