@@ -42,13 +42,15 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.calibrate.psf_calibration import calibrate_psf
     from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
-    from hdrcam.hdr.bracket_input import bracket_paths
+    from hdrcam.hdr.bracket_input import bracket_input_files
 
     profile = load_profile(arguments.profile)
     size = arguments.size or profile.simulation.psf_size_px
     if size % 2 == 0:
         raise InputError(f"--size {size}: the PSF size must be odd (a centre pixel)")
-    inputs = bracket_paths(arguments.bracket)
+    inputs = bracket_input_files(arguments.bracket)
+    if arguments.darks:
+        inputs += bracket_input_files([arguments.darks], kind="dark")
     check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     calibration = calibrate_psf(arguments.bracket, profile.camera, darks=arguments.darks, size_px=size,

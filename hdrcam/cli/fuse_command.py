@@ -39,7 +39,7 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
-    from hdrcam.hdr.bracket_input import bracket_paths
+    from hdrcam.hdr.bracket_input import bracket_input_files
     from hdrcam.hdr.fuse import fuse
     from hdrcam.io.atomic import write_bytes_atomic
     from hdrcam.io.exr import write_exr_channels
@@ -49,9 +49,10 @@ def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(arguments.profile)
     out: Path = arguments.out
     preview = out.with_suffix(".png")
-    inputs = bracket_paths(arguments.bracket)
-    check_outputs((out, preview), overwrite=arguments.overwrite,
-                  inputs=inputs + ([arguments.darks] if arguments.darks else []))
+    inputs = bracket_input_files(arguments.bracket)
+    if arguments.darks:
+        inputs += bracket_input_files([arguments.darks], kind="dark")
+    check_outputs((out, preview), overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
                  with_variance=arguments.variance, demosaic_method=arguments.demosaic)

@@ -31,7 +31,7 @@ def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, 
     A manifest must be complete and of ``kind`` ("light" or "dark"), and list no missing frame: a capture
     left unfinished, or darks given where lights belong, are refused.
     """
-    if len(sources) == 1 and (sources[0].suffix == ".json" or (sources[0] / MANIFEST_NAME).is_file()):
+    if len(sources) == 1 and _has_manifest(sources[0]):
         bracket = load_bracket(sources[0])
         if bracket.status != "complete":
             raise InputError(f"{sources[0]}: the capture is {bracket.status} ({bracket.error}); finish it with "
@@ -52,6 +52,18 @@ def bracket_paths(sources: list[Path], kind: str = "light") -> list[Path]:
     """The RAW paths of :func:`bracket_files` (whether each frame still has its sha256 is checked by
     :func:`read_bracket`)."""
     return [path for path, _ in bracket_files(sources, kind)]
+
+
+def bracket_input_files(sources: list[Path], kind: str = "light") -> list[Path]:
+    """Every file a bracket is read from - its RAW frames and its manifest, if it has one: a command's outputs
+    must be none of them, even with --overwrite."""
+    manifest = [sources[0] if sources[0].suffix == ".json" else sources[0] / MANIFEST_NAME] \
+        if len(sources) == 1 and _has_manifest(sources[0]) else []
+    return bracket_paths(sources, kind) + manifest
+
+
+def _has_manifest(source: Path) -> bool:
+    return source.suffix == ".json" or (source / MANIFEST_NAME).is_file()
 
 
 def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:

@@ -99,6 +99,17 @@ def test_overwrite_replaces_whole_files_and_never_an_input(workspace, tmp_path, 
     assert snapshot(workspace.root) == before
 
 
+@pytest.mark.parametrize("target", ["bracket.json", "darks/bracket.json", "darks/dark-00.dng"])
+def test_overwrite_never_replaces_a_manifest_or_a_dark_frame(workspace, target, capsys):
+    """The bracket's and the darks' manifests and the dark frames are inputs too."""
+    before = snapshot(workspace.root)
+    destination = workspace.bracket / target
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--darks", workspace.bracket / "darks", "--profile",
+                                     "simulated", "--out", destination, "--overwrite"], capsys),
+                                1, str(destination), "is also an input")
+    assert snapshot(workspace.root) == before
+
+
 @pytest.mark.parametrize("argv, mentions", [
     (lambda ws, t: ["fuse", ws.bracket, "--profile", "simulated", "--out", t / "x.png"], ("x.png",)),
     (lambda ws, t: ["simulate", "night", "--psf", "dirac", "--size", "32", "32", "--out", t / "x.exr",
