@@ -58,10 +58,17 @@ class FusedImage:
 
 
 def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[RawFrame | None] | None:
-    """A dark frame per light frame, matched by exposure time; InputError when one is missing."""
+    """A dark frame per light frame, matched by exposure time; InputError when one is missing or was taken by
+    another camera or at another ISO (its dark current and read noise are not the lights')."""
     if darks_source is None:
         return None
     darks = read_bracket([darks_source], kind="dark")
+    light, dark_meta = frames[0].metadata, darks[0].metadata
+    for what, value, expected in (("camera", dark_meta.camera_model, light.camera_model),
+                                  ("ISO", dark_meta.iso, light.iso)):
+        if value != expected:
+            raise InputError(f"{dark_meta.path}: dark frames of {what} {value} for lights of {what} {expected} "
+                             f"({light.path.name}); take the darks with the lights' settings")
     matched = []
     for frame in frames:
         exposure = frame.metadata.exposure_s

@@ -42,6 +42,22 @@ def test_darks_given_as_lights_and_lights_as_darks_are_refused(workspace, tmp_pa
                                      "simulated", "--out", tmp_path / "f.exr"], capsys), 1, "light frames where dark")
 
 
+def test_darks_of_another_iso_or_camera_are_refused(workspace, tmp_path, capsys):
+    """Darks carry the lights' dark current and read noise only at their ISO, from their body."""
+    iso_800 = tmp_path / "iso800"
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--darks",
+                 "--size", "64x48", "--stops", "3", "--iso", "800", "--out", str(iso_800)]) == 0
+    other_body = copy_bracket(workspace.bracket / "darks", tmp_path / "other-body")
+    for frame in other_body.glob("*.dng"):
+        frame.write_bytes(frame.read_bytes().replace(b"ILCE-7\0", b"ILCE-9\0"))
+    (other_body / "bracket.json").unlink()  # its sha256s no longer hold: the frames as a folder
+    capsys.readouterr()
+    for darks, mentions in ((iso_800 / "darks", "ISO 800"), (other_body, "ILCE-9")):
+        assert_failed_with_one_line(run(["fuse", workspace.bracket, "--darks", darks, "--profile", "simulated",
+                                         "--out", tmp_path / "f.exr"], capsys), 1, "dark frames of", mentions)
+    assert not (tmp_path / "f.exr").exists()
+
+
 def test_a_bracket_mixing_two_camera_models_is_refused_naming_the_frame(workspace, tmp_path, capsys):
     other = tmp_path / "frame-02.dng"  # the same frame as if from another body (its Model tag changed)
     data = (workspace.bracket / "frame-02.dng").read_bytes()
