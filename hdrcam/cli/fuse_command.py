@@ -4,7 +4,8 @@ The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip
 smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
 attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
 most PREVIEW_SIDE_PX on its longer side and turned upright. The preview is made on a second thread while the EXR
-is written (OpenEXR releases the GIL) and written once the EXR is: a failed or interrupted EXR leaves no file."""
+is written (OpenEXR releases the GIL); the two are published together once both are written: a failure or an
+interrupt before that leaves neither."""
 
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.hdr.bracket_input import bracket_input_files
     from hdrcam.hdr.fuse import fuse
-    from hdrcam.io.atomic import write_bytes_atomic
+    from hdrcam.io.atomic import atomic_paths, write_bytes_atomic
     from hdrcam.io.exr import write_exr_channels
     from hdrcam.io.png import encoded_png
     from hdrcam.preview import display_oriented, reduced_for_preview, tonemap_rgb
@@ -64,11 +65,12 @@ def run(arguments: argparse.Namespace) -> int:
         upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
         return encoded_png(upright, preview)
 
-    with ThreadPoolExecutor(1) as previewer:  # the EXR on this thread, where an interrupt discards it unfinished
-        png = previewer.submit(preview_png)
-        write_exr_channels(out, channels, attributes=image.attributes(), half=arguments.half,
-                           overwrite=arguments.overwrite, compression=arguments.compression)
-        write_bytes_atomic(preview, png.result(), overwrite=arguments.overwrite)
+    with ThreadPoolExecutor(1) as previewer, atomic_paths((out, preview), overwrite=arguments.overwrite) as (
+            exr_temporary, png_temporary):  # both published once both are written, or neither
+        png = previewer.submit(preview_png)  # the EXR on this thread, where an interrupt discards it unfinished
+        write_exr_channels(exr_temporary, channels, attributes=image.attributes(), half=arguments.half,
+                           overwrite=True, compression=arguments.compression)
+        write_bytes_atomic(png_temporary, png.result(), overwrite=True)
     seconds = time.perf_counter() - started
     merge = image.merge
     print(f"{len(image.frame_metadata)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "

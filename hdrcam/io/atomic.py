@@ -91,29 +91,57 @@ def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
     Without ``overwrite`` the publication fails with OutputExistsError if ``path`` exists by then. The
     temporary file is removed on every failure. Parent folders are created.
     """
-    path = check_writable(Path(path), overwrite=overwrite)
-    temporary_path = None
+    with atomic_paths([path], overwrite=overwrite) as (temporary,):
+        yield temporary
+
+
+@contextlib.contextmanager
+def atomic_paths(paths: Iterable[Path], *, overwrite: bool = False) -> Iterator[list[Path]]:
+    """:func:`atomic_path` for several outputs of one command, published together once the body has written
+    them all: a failure while writing any (a full disk, an interrupt) leaves none of them, and a failure while
+    publishing removes those this call had published (with ``overwrite``, what they replaced stays replaced)."""
+    paths = [check_writable(Path(path), overwrite=overwrite) for path in paths]
+    temporaries: list[Path] = []
+    current = paths[0] if paths else None  # the output an OSError concerns
     try:
-        with interrupts_deferred():  # a signal here is raised once temporary_path names the file to remove
-            _make_folder(path.parent)
-            handle, temporary = tempfile.mkstemp(prefix=f".{path.stem[:80]}.",
-                                                 suffix=f"{TEMPORARY_SUFFIX}{path.suffix[:20]}", dir=path.parent)
-            os.close(handle)
-            temporary_path = Path(temporary)
-        yield temporary_path
-        os.chmod(temporary_path, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
-        _flush_to_disk(temporary_path)
-        with interrupts_deferred():  # publish and remove the temporary name as one step
-            _publish(temporary_path, path, overwrite)
-            temporary_path.unlink(missing_ok=True)
-            temporary_path = None  # published: nothing left for the cleanup below
+        with interrupts_deferred():  # a signal here is raised once temporaries names every file to remove
+            for current in paths:
+                _make_folder(current.parent)
+                handle, temporary = tempfile.mkstemp(prefix=f".{current.stem[:80]}.",
+                                                     suffix=f"{TEMPORARY_SUFFIX}{current.suffix[:20]}",
+                                                     dir=current.parent)
+                os.close(handle)
+                temporaries.append(Path(temporary))
+        # an error of the body names a temporary (the output it stands for), or no file: the output, if only one
+        current = paths[0] if len(paths) == 1 else None
+        yield list(temporaries)
+        for current, temporary in zip(paths, temporaries):
+            os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
+            _flush_to_disk(temporary)
+        with interrupts_deferred():  # publish and remove the temporary names as one step
+            _publish_all(temporaries, paths, overwrite)
+            temporaries = []  # published: nothing left for the cleanup below
     except OSError as error:
-        _name_the_output(error, path, temporary_path)
+        _name_the_output(error, dict(zip(map(str, temporaries), paths)), current)
         raise
     finally:
-        if temporary_path is not None:
+        for temporary in temporaries:
             with contextlib.suppress(OSError):
-                temporary_path.unlink(missing_ok=True)
+                temporary.unlink(missing_ok=True)
+
+
+def _publish_all(temporaries: list[Path], paths: list[Path], overwrite: bool) -> None:
+    published: list[Path] = []
+    try:
+        for temporary, path in zip(temporaries, paths):
+            _publish(temporary, path, overwrite)
+            published.append(path)
+            temporary.unlink(missing_ok=True)
+    except BaseException:
+        for path in published:
+            with contextlib.suppress(OSError):
+                path.unlink()
+        raise
 
 
 def _make_folder(folder: Path) -> None:
@@ -154,9 +182,11 @@ def _flush_to_disk(path: Path) -> None:
         os.close(descriptor)
 
 
-def _name_the_output(error: OSError, path: Path, temporary: Path | None) -> None:
-    """Make an OSError raised while writing name the output the user asked for."""
-    if error.filename is None or (temporary is not None and str(error.filename) == str(temporary)):
+def _name_the_output(error: OSError, outputs_of_temporaries: dict[str, Path], current: Path | None) -> None:
+    """Make an OSError raised while writing name the output the user asked for: the output of the temporary it
+    names, else (naming no file) ``current``, the output being created, flushed or published."""
+    path = outputs_of_temporaries.get(str(error.filename)) if error.filename is not None else current
+    if path is not None:
         error.filename = str(path)
         if error.filename2 is not None and str(error.filename2) == str(path):
             error.filename2 = None

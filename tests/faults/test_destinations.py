@@ -73,7 +73,8 @@ def test_a_file_appearing_between_check_and_write_is_left_alone(name, workspace,
 
     def someone_else_writes_first(temporary):
         final = temporary.parent / (temporary.name[1:].split(".")[0] + temporary.suffix)
-        if not intruders and not final.exists():
+        outermost = temporary.name.count(atomic.TEMPORARY_SUFFIX) == 1  # not one written inside another's temporary
+        if not intruders and outermost and not final.exists():
             final.write_bytes(b"another program's file")
             intruders.append(final)
         flush(temporary)
@@ -97,6 +98,22 @@ def test_overwrite_replaces_whole_files_and_never_an_input(workspace, tmp_path, 
     assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out", frame,
                                      "--overwrite"], capsys), 1, str(frame), "is also an input")
     assert snapshot(workspace.root) == before
+
+
+def test_fuse_publishes_its_exr_and_preview_together_or_neither(workspace, tmp_path, capsys, monkeypatch):
+    """A preview that fails after the EXR was written (a full disk) leaves no EXR either, so a rerun starts clean."""
+    import errno
+
+    import hdrcam.io.png
+
+    def full_disk(image, path="image"):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(hdrcam.io.png, "encoded_png", full_disk)
+    out = tmp_path / "fused.exr"
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--profile", "simulated", "--out", out], capsys),
+                                1, "no space")
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("target", ["bracket.json", "darks/bracket.json", "darks/dark-00.dng"])

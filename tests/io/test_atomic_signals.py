@@ -1,4 +1,5 @@
-"""A termination signal at any line of an atomic write leaves the whole file or nothing, and no temporary."""
+"""A termination signal at any line of an atomic write leaves the whole file or nothing, and no temporary; of a
+write of several outputs together, all of them or none."""
 
 from __future__ import annotations
 
@@ -11,22 +12,23 @@ import pytest
 
 from hdrcam.errors import Interrupted
 from hdrcam.interrupts import interrupts_deferred, termination_signals_raised
-from hdrcam.io.atomic import TEMPORARY_SUFFIX, atomic_path, write_bytes_atomic
+from hdrcam.io import atomic
+from hdrcam.io.atomic import TEMPORARY_SUFFIX, atomic_path, atomic_paths, write_bytes_atomic
 
-ATOMIC_PATH_CODE = inspect.unwrap(atomic_path).__code__
+ATOMIC_CODES = {inspect.unwrap(function).__code__ for function in (atomic_path, atomic_paths, atomic._publish_all)}
 
 
 @contextlib.contextmanager
 def traced_lines(on_line):
-    """Call ``on_line(number)`` at every line event of atomic_path's own frame (a generator: each resumption
-    is traced too)."""
+    """Call ``on_line(number)`` at every line event of atomic_path's, atomic_paths' and _publish_all's own frames
+    (generators: each resumption is traced too)."""
     def local(frame, event, argument):
         if event == "line":
             on_line(frame.f_lineno)
         return local
 
     def global_(frame, event, argument):
-        return local if frame.f_code is ATOMIC_PATH_CODE else None
+        return local if frame.f_code in ATOMIC_CODES else None
 
     sys.settrace(global_)
     try:
@@ -35,10 +37,23 @@ def traced_lines(on_line):
         sys.settrace(None)
 
 
-def test_a_signal_at_any_line_of_an_atomic_write_leaves_the_whole_file_or_nothing(tmp_path):
+def write_one(folder):
+    write_bytes_atomic(folder / "out.bin", b"data")
+
+
+def write_two(folder):
+    with atomic_paths([folder / "out.bin", folder / "out.png"]) as (first, second):
+        first.write_bytes(b"data")
+        second.write_bytes(b"preview")
+
+
+@pytest.mark.parametrize("write, whole", [(write_one, {"out.bin": b"data"}),
+                                          (write_two, {"out.bin": b"data", "out.png": b"preview"})])
+def test_a_signal_at_any_line_of_an_atomic_write_leaves_the_whole_file_or_nothing(write, whole, tmp_path):
     lines: list[int] = []
+    (tmp_path / "plain").mkdir()
     with traced_lines(lines.append):
-        write_bytes_atomic(tmp_path / "plain.bin", b"data")
+        write(tmp_path / "plain")
     assert len(set(lines)) > 5
 
     interrupted = 0
@@ -55,13 +70,13 @@ def test_a_signal_at_any_line_of_an_atomic_write_leaves_the_whole_file_or_nothin
         with termination_signals_raised():
             try:
                 with traced_lines(signal_once):
-                    write_bytes_atomic(folder / "out.bin", b"data")
+                    write(folder)
             except Interrupted as interruption:
                 assert interruption.signal_number == signal.SIGTERM
                 interrupted += 1
         assert sent == [line]
         left = {path.name: path.read_bytes() for path in folder.iterdir()}
-        assert left in ({}, {"out.bin": b"data"}), f"signal at atomic.py line {line} left {sorted(left)}"
+        assert left in ({}, whole), f"signal at atomic.py line {line} left {sorted(left)}"
         assert not any(TEMPORARY_SUFFIX in name for name in left)
     assert interrupted == len(set(lines))
 
