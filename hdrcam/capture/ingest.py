@@ -5,8 +5,10 @@ A bracket is a run of frames from one camera (for files that name none, one sens
 (no gap longer than ``max_gap_s`` plus the previous exposure), with distinct exposure times; a repeated
 exposure starts the next bracket. Brackets shot alternately (e.g. at two ISOs) are separated by their
 settings. Every file of the folder is offered to LibRaw (no list of suffixes): one it does not open, or
-that fits no bracket, is reported with the reason - never silently dropped. Hidden files and hdrcam's own
-JSON manifests are not candidates.
+that fits no bracket, is reported with the reason - never silently dropped. A byte-identical copy of another
+RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is named as a duplicate and left out, so that it
+neither splits a bracket nor stands for a second exposure. Hidden files and hdrcam's own JSON manifests are
+not candidates.
 """
 
 from __future__ import annotations
@@ -47,16 +49,16 @@ def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP
         by_settings.setdefault(key, []).append(frame)
     brackets, report = [], []
     for group in by_settings.values():
-        group.sort(key=lambda f: (f.timestamp is None, f.timestamp or 0, f.path.name))
+        group.sort(key=lambda f: (*_taken(f), f.path.name))
         current: list[RawMetadata] = []
         for frame in group:
             if current and (_too_late(current[-1], frame, max_gap_s)
                             or any(_same_exposure(frame, other) for other in current)):
-                _close(current, brackets, report, max_gap_s)
+                _close(current, group, brackets, report, max_gap_s)
                 current = []
             current.append(frame)
-        _close(current, brackets, report, max_gap_s)
-    brackets.sort(key=lambda b: (b[0].timestamp is None, b[0].timestamp or 0, b[0].path.name))
+        _close(current, group, brackets, report, max_gap_s)
+    brackets.sort(key=lambda b: (*_taken(b[0]), b[0].path.name))
     return IngestResult(brackets, report)
 
 
@@ -70,13 +72,25 @@ def _same_exposure(a: RawMetadata, b: RawMetadata) -> bool:
     return abs(a.exposure_s - b.exposure_s) <= 1e-3 * max(a.exposure_s, b.exposure_s)
 
 
-def _close(current: list[RawMetadata], brackets: list, report: list[str], max_gap_s: float) -> None:
+def _close(current: list[RawMetadata], group: list[RawMetadata], brackets: list, report: list[str],
+           max_gap_s: float) -> None:
+    """A run of two or more frames is a bracket; a lone frame is reported, with the frame whose exposure it
+    repeats when one with its settings was taken close enough to share its bracket."""
     if len(current) >= 2:
         brackets.append(current)
     elif current:
         frame = current[0]
+        twin = next((other for other in group if other is not frame and _same_exposure(frame, other)
+                     and not _too_late(*sorted((frame, other), key=_taken), max_gap_s)), None)
+        reason = (f"same exposure as {twin.path.name}, and a bracket needs distinct exposures" if twin
+                  else f"no other frame with these settings within {max_gap_s:g} s")
         report.append(f"not in a bracket: {frame.path.name} (ISO {frame.iso or '?'}, f/{frame.f_number or '?'}, "
-                      f"{frame.exposure_s:g} s): no other frame with these settings within {max_gap_s:g} s")
+                      f"{frame.exposure_s:g} s): {reason}")
+
+
+def _taken(frame: RawMetadata) -> tuple:
+    """Sorts by capture time, frames without one last."""
+    return frame.timestamp is None, frame.timestamp or 0
 
 
 def ingest_folder(folder: Path, max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
@@ -87,9 +101,29 @@ def ingest_folder(folder: Path, max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestR
             frames.append(read_raw_metadata(path))
         except InputError as error:
             unreadable.append(f"skipped: {error}")
-    result = group_brackets(frames, max_gap_s)
-    result.report = unreadable + result.report
+    originals, duplicates = _without_copies(frames)
+    result = group_brackets(originals, max_gap_s)
+    result.report = unreadable + duplicates + result.report
     return result
+
+
+def _without_copies(frames: list[RawMetadata]) -> tuple[list[RawMetadata], list[str]]:
+    """``frames`` less byte-identical copies, and one line per copy. Only files of equal size, capture time and
+    exposure are hashed (a card of same-sized frames is not read whole). Of identical files the shortest name
+    (then the first by name) stays: frame-02.dng, not "frame-02 (1).dng"."""
+    candidates: dict[tuple, list[RawMetadata]] = {}
+    for frame in frames:
+        candidates.setdefault((frame.path.stat().st_size, frame.timestamp, frame.exposure_s), []).append(frame)
+    copies, report = set(), []
+    for same_size in (group for group in candidates.values() if len(group) > 1):
+        originals: dict[str, RawMetadata] = {}
+        for frame in sorted(same_size, key=lambda f: (len(f.path.name), f.path.name)):
+            original = originals.setdefault(sha256_of(frame.path), frame)
+            if original is not frame:
+                copies.add(frame.path)
+                report.append(f"duplicate: {frame.path.name} has the same content as {original.path.name} "
+                              "(identical sha256); left out of the brackets")
+    return [frame for frame in frames if frame.path not in copies], sorted(report)
 
 
 def bracket_manifest(frames: list[RawMetadata], manifest_folder: Path, options: dict) -> Bracket:

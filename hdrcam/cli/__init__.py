@@ -28,8 +28,8 @@ class OneLineParser(argparse.ArgumentParser):
 # the command being run is imported (all of them for ``hdrcam --help``); none imports torch before its run().
 COMMAND_MODULES = {"psf": "psf_command", "fabricate": "fabricate_command", "capture": "capture_command",
                    "ingest": "ingest_command", "inspect": "inspect_command", "fuse": "fuse_command",
-                   "calibrate": "calibrate_command", "design": "design_command", "finetune": "design_command", "evaluate": "evaluate_command",
-                   "simulate": "simulate_command", "reconstruct": "reconstruct_command",
+                   "calibrate": "calibrate_command", "design": "design_command", "finetune": "design_command",
+                   "evaluate": "evaluate_command", "simulate": "simulate_command", "reconstruct": "reconstruct_command",
                    "destreak": "destreak_command", "export": "export_command", "demo": "demo_command"}
 
 
@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
         return 128 + number
     except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
-        if os.environ.get("HDRCAM_DEBUG"):
+        if _debugging():
             traceback.print_exc()
         message = failure_message(error)
         if message is not None:
@@ -84,8 +84,17 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BUG
 
 
+_DEBUG_OFF = ("", "0", "false", "no", "off")
+
+
+def _debugging() -> bool:
+    """Whether HDRCAM_DEBUG asks for tracebacks: any value but unset, empty, 0, false, no or off (any case)."""
+    return os.environ.get("HDRCAM_DEBUG", "").strip().lower() not in _DEBUG_OFF
+
+
 def _report(line: str) -> None:
-    print(one_line(line), file=sys.stderr, flush=True)
+    with contextlib.suppress(OSError):  # standard error closed as well (2>&1 | head): nowhere left to say it
+        print(one_line(line), file=sys.stderr, flush=True)
 
 
 class StandardOutputError(HdrcamError):
@@ -124,6 +133,9 @@ class _GuardedOutput:
                 devnull = os.open(os.devnull, os.O_WRONLY)
                 os.dup2(devnull, self._stream.fileno())
                 os.close(devnull)
+            if isinstance(error, BrokenPipeError):  # the reader has gone (| head): nothing for the user to fix
+                raise StandardOutputError("standard output closed early (broken pipe: the program reading it "
+                                          "has exited); stopped, files already written are kept") from None
             raise StandardOutputError(f"cannot write to standard output ({error.strerror or error}); "
                                       "redirect it to a file or device with room") from None
 

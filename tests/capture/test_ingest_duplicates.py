@@ -1,0 +1,66 @@
+"""Ingest of folders holding copies of a RAW file, and of distinct frames that repeat an exposure."""
+
+from __future__ import annotations
+
+import datetime as dt
+import shutil
+
+from hdrcam.capture.ingest import ingest_folder
+from hdrcam.capture.manifest import load_bracket
+from hdrcam.cli import main
+from tests.capture.helpers import small_camera
+
+START = dt.datetime(2026, 5, 1, 21, 0, 0)
+EXPOSURES = (1 / 4000, 1 / 500, 1 / 60, 1 / 8, 1.0)
+
+
+def _write_frames(folder, exposures, start=START, prefix="frame"):
+    _, simulated = small_camera("sim")
+    for k, exposure in enumerate(exposures):
+        simulated.set_exposure(exposure, iso=100)
+        simulated.write_frame(folder / f"{prefix}-{k:02d}.dng", simulated.render_dn(), simulated.settings(),
+                              start + dt.timedelta(seconds=k))
+
+
+def test_a_copy_of_a_frame_is_named_as_a_duplicate_and_the_bracket_stays_whole(tmp_path, capsys):
+    _write_frames(tmp_path, EXPOSURES)
+    shutil.copyfile(tmp_path / "frame-02.dng", tmp_path / "frame-02 (1).dng")
+    result = ingest_folder(tmp_path)
+    assert [[f.path.name for f in b] for b in result.brackets] == [[f"frame-{k:02d}.dng" for k in range(5)]]
+    assert result.report == ["duplicate: frame-02 (1).dng has the same content as frame-02.dng (identical sha256); "
+                             "left out of the brackets"]
+
+    assert main(["ingest", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert len(printed) == 2 and "5 frames" in printed[0] and printed[1] == result.report[0]
+    manifest = load_bracket(tmp_path / "bracket-01.json")
+    assert [f.file for f in manifest.frames] == [f"frame-{k:02d}.dng" for k in range(5)]
+    assert not (tmp_path / "bracket-02.json").exists()
+
+
+def test_three_copies_of_one_file_are_two_duplicates_of_the_first(tmp_path, capsys):
+    _write_frames(tmp_path, EXPOSURES[:1])
+    for k in (1, 2, 3):
+        shutil.copyfile(tmp_path / "frame-00.dng", tmp_path / f"copy{k}.dng")
+    (tmp_path / "frame-00.dng").unlink()
+    result = ingest_folder(tmp_path)
+    assert result.brackets == []
+    assert [line.split(" (")[0] for line in result.report] == [
+        "duplicate: copy2.dng has the same content as copy1.dng",
+        "duplicate: copy3.dng has the same content as copy1.dng", "not in a bracket: copy1.dng"]
+    assert main(["ingest", str(tmp_path)]) == 1
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "copy2.dng has the same content as copy1.dng" in error
+
+
+def test_distinct_frames_refused_for_sharing_an_exposure_say_so(tmp_path):
+    _write_frames(tmp_path, (1 / 60, 1 / 60))  # two shots (different noise) 1 s apart at one exposure
+    _write_frames(tmp_path, (1 / 60,), START + dt.timedelta(minutes=5), prefix="late")  # alone in its minute
+    result = ingest_folder(tmp_path)
+    assert result.brackets == [] and len(result.report) == 3
+    first, second, late = result.report
+    assert first.startswith("not in a bracket: frame-00.dng") and second.startswith("not in a bracket: frame-01.dng")
+    assert first.endswith("same exposure as frame-01.dng, and a bracket needs distinct exposures")
+    assert second.endswith("same exposure as frame-00.dng, and a bracket needs distinct exposures")
+    assert late.startswith("not in a bracket: late-00.dng") and late.endswith("no other frame with these settings "
+                                                                              "within 10 s")

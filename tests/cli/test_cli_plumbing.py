@@ -1,0 +1,76 @@
+"""The command line's plumbing: HDRCAM_DEBUG's values, and a standard output whose reader has gone (| head)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from hdrcam.cli import main
+from hdrcam.io.exr import read_exr
+
+
+@pytest.fixture(scope="module")
+def bracket(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plumbing") / "bracket"
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--size",
+                 "64x48", "--stops", "3", "--out", str(folder)]) == 0
+    return folder
+
+
+def _bug(arguments):
+    return 1 / 0
+
+
+@pytest.mark.parametrize("value", ["0", "", "false", "No", "OFF", " off "])
+def test_hdrcam_debug_off_values_show_no_traceback(value, tmp_path, monkeypatch, capsys):
+    from hdrcam.cli import fabricate_command
+
+    monkeypatch.setattr(fabricate_command, "run", _bug)
+    monkeypatch.setenv("HDRCAM_DEBUG", value)
+    assert main(["fabricate", "x.exr"]) == 3
+    assert main(["fuse", str(tmp_path / "nonexist"), "--out", str(tmp_path / "z.exr")]) == 1
+    error = capsys.readouterr().err
+    assert "Traceback" not in error and error.count("\n") == 2, error
+
+
+@pytest.mark.parametrize("value", ["1", "yes", "true", "on"])
+def test_hdrcam_debug_on_values_show_the_traceback(value, monkeypatch, capsys):
+    from hdrcam.cli import fabricate_command
+
+    monkeypatch.setattr(fabricate_command, "run", _bug)
+    monkeypatch.setenv("HDRCAM_DEBUG", value)
+    assert main(["fabricate", "x.exr"]) == 3
+    assert "Traceback" in capsys.readouterr().err
+
+
+def _closed_pipe() -> int:
+    """The write end of a pipe whose reader has already exited, as `hdrcam ... | head -0` gives."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    return write_end
+
+
+def test_fuse_into_a_closed_pipe_keeps_its_outputs_and_says_so_in_one_line(bracket, tmp_path, monkeypatch, capsys):
+    out = tmp_path / "x.exr"
+    with os.fdopen(_closed_pipe(), "w") as pipe:
+        monkeypatch.setattr(sys, "stdout", pipe)
+        status = main(["fuse", str(bracket), "--profile", "simulated", "--out", str(out)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(lines) == 1, lines
+    assert lines[0].startswith("hdrcam fuse: error: standard output closed early (broken pipe")
+    assert "room" not in lines[0]
+    assert read_exr(out).rgb().shape == (48, 64, 3) and out.with_suffix(".png").stat().st_size > 0
+
+
+def test_inspect_into_a_closed_pipe_exits_1_with_one_line_and_no_second_error_at_exit(bracket):
+    pipe = _closed_pipe()
+    try:
+        done = subprocess.run([sys.executable, "-m", "hdrcam", "inspect", *map(str, sorted(bracket.glob("*.dng")))],
+                              stdout=pipe, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(pipe)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("hdrcam inspect: error: standard output closed early (broken pipe")
