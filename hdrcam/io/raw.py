@@ -60,6 +60,7 @@ UNKNOWN_CAMERA = "unknown"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
 FILLED_ROWS = 8
+LIBRAW_HEADER_BYTES = 64  # LibRaw reads this much of a file to tell its format
 _EXIF_ORIENTATION = {0: 1, 1: 2, 2: 4, 3: 3, 4: 5, 5: 8, 6: 6, 7: 7}  # LibRaw's sizes.flip -> EXIF (_exif_orientation)
 _BLOCK_BAYER_NAMES = {2: "Quad-Bayer", 3: "Nona-Bayer"}  # each colour of a 2 x 2 Bayer tile on n x n pixels
 
@@ -168,10 +169,12 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if tiff.data_end_bytes > tiff.file_bytes:
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
                          f"file ends at {tiff.file_bytes}; copy it from the card again")
+    if tiff.file_bytes < LIBRAW_HEADER_BYTES:  # LibRaw reports an I/O error for these, as for a damaged file
+        raise NotRawError(f"{path}: LibRaw does not open it as RAW (only {tiff.file_bytes} bytes: no RAW header)")
     raw, bayer = rawpy.RawPy(), None
     try:
-        with _libraw_stderr_silenced():
-            raw.open_file(str(path))  # the header only: sizes are checked before LibRaw allocates the pixels
+        with _libraw_stderr_silenced(), _libraw_path(path) as libraw_path:
+            raw.open_file(libraw_path)  # the header only: sizes are checked before LibRaw allocates the pixels
             check_image_size(str(path), int(raw.sizes.raw_height), int(raw.sizes.raw_width), RAW_BYTES_PER_PIXEL,
                              "use a machine with more memory")
             try:
@@ -219,6 +222,22 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if not metadata.exposure_s > 0:
         raise InputError(f"{path}: the file has no exposure time; give the exposures in a bracket.json")
     return metadata, bayer
+
+
+@contextlib.contextmanager
+def _libraw_path(path: Path):
+    """A name LibRaw can open for ``path``: rawpy encodes names as UTF-8, so a name that is not (Latin-1 bytes
+    from a card, kept by Python as surrogate escapes) is opened by its descriptor's name, /dev/fd/N."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        descriptor = os.open(path, os.O_RDONLY)
+        try:
+            yield f"/dev/fd/{descriptor}"
+        finally:
+            os.close(descriptor)
+        return
+    yield str(path)
 
 
 def repeated_tail_rows(bayer_dn: np.ndarray) -> int:

@@ -170,6 +170,26 @@ def test_non_utf8_names_work_and_long_names_are_refused_in_one_line(workspace, t
     assert temporaries(tmp_path) == []
 
 
+def test_raw_files_with_non_utf8_names_fuse_and_ingest(workspace, tmp_path, capsys):
+    """Latin-1 names from a card (rawpy encodes names as UTF-8): read through the file's descriptor."""
+    odd = Path(os.fsdecode(bytes(tmp_path) + b"/caf\xe9"))
+    odd.mkdir()
+    for frame in sorted(workspace.bracket.glob("frame-*.dng")):
+        shutil.copyfile(frame, Path(os.fsdecode(bytes(odd) + b"/" + frame.stem.encode() + b"-\xe9.dng")))
+    assert run(["fuse", odd, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys)[0] == 0
+    assert run(["ingest", odd, "--out", tmp_path / "manifests"], capsys)[0] == 0
+
+
+def test_tiny_files_beside_a_bracket_are_skipped_as_not_raw(workspace, tmp_path, capsys):
+    """A note shorter than LibRaw's 64-byte header read (it reports an I/O error, as for a damaged file)."""
+    folder = copy_bracket(workspace.bracket, tmp_path / "bracket")
+    (folder / "bracket.json").unlink()
+    shutil.rmtree(folder / "darks")
+    (folder / "notes.txt").write_text("tripod, 50mm\n")
+    with pytest.warns(UserWarning, match="notes.txt: LibRaw does not open it as RAW"):
+        assert run(["fuse", folder, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys)[0] == 0
+
+
 def test_an_empty_folder_to_ingest_is_one_line_on_stderr(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     status, out, lines = run(["ingest", tmp_path / "empty"], capsys)
