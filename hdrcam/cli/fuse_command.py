@@ -29,7 +29,8 @@ def register(commands) -> None:
     parser.add_argument("--darks", type=Path, default=None, help="dark frames (bracket.json or folder)")
     parser.add_argument("--camera-rgb", action="store_true", help="keep camera RGB (no colour matrix)")
     parser.add_argument("--variance", action="store_true", help="add per-channel variance channels")
-    parser.add_argument("--half", action="store_true", help="write half floats (refused above 65504)")
+    parser.add_argument("--half", action="store_true",
+                        help="write half floats (refused for RGB above 65504; variances above it are stored as 65504)")
     parser.add_argument("--compression", choices=("none", "zip"), default="none",
                         help="EXR compression (default none: fastest; zip: lossless, about a quarter smaller, slower)")
     parser.add_argument("--overwrite", action="store_true")
@@ -57,9 +58,7 @@ def run(arguments: argparse.Namespace) -> int:
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
                  with_variance=arguments.variance, demosaic_method=arguments.demosaic)
-    channels = {"RGB": image.rgb, "clipped": image.clipped}
-    if image.variance is not None:
-        channels["variance"] = image.variance
+    channels = image.exr_channels(half=arguments.half)
 
     def preview_png() -> bytes:
         upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)

@@ -22,6 +22,7 @@ from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
+from hdrcam.io.exr import HALF_MAX
 from hdrcam.io.raw import RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
@@ -45,6 +46,15 @@ class FusedImage:
         """EXIF Orientation code (1 to 8) that displays the image upright (6: turn 90 degrees clockwise); the
         pixels stay in the sensor's orientation. The first frame's."""
         return self.frame_metadata[0].orientation
+
+    def exr_channels(self, half: bool = False) -> dict[str, np.ndarray]:
+        """The EXR's channels: RGB, the clipped mask and, if computed, the variance. A variance is unknown (1e30
+        or more) where every frame clipped; with ``half`` every variance above the half range (65504, a standard
+        deviation of 256 relative units) is stored as 65504, so that the file can hold it."""
+        channels = {"RGB": self.rgb, "clipped": self.clipped}
+        if self.variance is not None:
+            channels["variance"] = np.minimum(self.variance, HALF_MAX) if half else self.variance
+        return channels
 
     def attributes(self) -> dict:
         """The EXR's attributes; ``orientation`` is the EXIF code of the pixels, which are in the sensor's
