@@ -318,6 +318,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> Profile:
     if abs(round(calibration.ev_step * 3) - calibration.ev_step * 3) > 0.01:
         raise ProfileError(f"{path}: [calibration] ev_step: must be a multiple of 1/3 EV (the shutter's notches), "
                            f"got {calibration.ev_step}")
+    calibration = dataclasses.replace(calibration, ev_step=round(calibration.ev_step * 3) / 3)  # 0.333: 1/3 exactly
     for key in ("point_source_distance_m", "focus_distance_m"):
         if getattr(calibration, key) <= lens.focal_length_m:
             raise ProfileError(f"{path}: [calibration] {key}: {getattr(calibration, key)} m is not beyond the focal "

@@ -38,19 +38,21 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
 
     ``camera``: ``sim`` (simulated A7), ``sim-usb`` (the USB code path against an emulated A7) or ``usb`` (a
     Sony A7 in PC-remote mode). Exposures: ``stops`` frames ``ev_step`` EV apart from ``shortest_s`` seconds
-    (defaults: the profile's calibration plan), at ``iso``; ``auto`` takes only the exposures the region
-    ``roi`` (x, y, width, height in pixels) needs. ``darks``: dark frames at the same exposures in out/darks.
-    Simulated cameras: ``scene`` (point[:POWER], pinholes[:POWER[:SPACING]], night, flat[:LEVEL] or an EXR in
-    relative radiance), ``psf`` (doe, dirac or an EXR), ``size_px`` (width, height; default: the profile's
-    sensor), ``seed``, ``hot_pixel_fraction`` (of all pixels) and ``exposure_error`` (largest relative error of
-    a true shutter time). A folder that holds a capture is never overwritten (OutputExistsError); ``resume``
-    continues an incomplete one instead, keeping the frames on disk (InputError when it is complete).
+    (defaults: the profile's calibration plan), at ``iso`` (one of the camera's settings, 100 ... 25600 in 1/3 EV
+    steps); ``auto`` takes only the exposures the region ``roi`` (x, y, width, height in pixels) needs. A plan the
+    camera cannot take is refused (InputError) before anything is written. ``darks``: dark frames at the same
+    exposures in out/darks. Simulated cameras: ``scene`` (point[:POWER], pinholes[:POWER[:SPACING]], night,
+    flat[:LEVEL] or an EXR in relative radiance), ``psf`` (doe, dirac or an EXR), ``size_px`` (width, height in
+    pixels, at least 22 each: LibRaw's smallest RAW; default: the profile's sensor), ``seed``,
+    ``hot_pixel_fraction`` (of all pixels) and ``exposure_error`` (largest relative error of a true shutter time).
+    A folder that holds a capture is never overwritten (OutputExistsError); ``resume`` continues an incomplete
+    one instead, keeping the frames on disk (InputError when it is complete).
     ``log`` receives one line per event (the camera, each frame, the time taken, the bracket's notes).
     Returns the bracket and the dark bracket (or None).
     """
     import time
 
-    from hdrcam.capture.backends import open_camera
+    from hdrcam.capture.backends import SIMULATED_MIN_SIDE_PX, open_camera
     from hdrcam.capture.bracket import BracketCapture, BracketPlan
     from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
     from hdrcam.capture.notches import nearest_shutter
@@ -80,6 +82,10 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     rendered = kernel = None
     if camera != "usb":
         width, height = size_px or (chosen.camera.width_px, chosen.camera.height_px)
+        if min(width, height) < SIMULATED_MIN_SIDE_PX:
+            raise InputError(f"--size {width}x{height}: LibRaw opens no RAW frame smaller than {SIMULATED_MIN_SIDE_PX} "
+                             f"px on a side; use --size {max(width, SIMULATED_MIN_SIDE_PX)}x"
+                             f"{max(height, SIMULATED_MIN_SIDE_PX)} or larger")
         rendered = load_scene(scene, height, width, seed=seed)
         kernel = simulation_psf(chosen, psf)  # the DOE is part of the camera, not of the seed
     device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
@@ -93,18 +99,20 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
         if saved is not None and saved.status == "complete":
             bracket = saved
         else:
+            kept = len(saved.frames) if saved else 0  # before shoot(), which goes on adding to ``saved``
             bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name,
                                      options=options, true_exposure_s=truth,
                                      show_progress=show_progress).shoot(plan, resume=saved)
-            shot += len(bracket.frames) - (len(saved.frames) if saved else 0)
+            shot += len(bracket.frames) - kept
         _log_frames(say, bracket, folder)
         if darks:
             notches = [nearest_shutter(frame.exposure_s) for frame in bracket.frames]
+            kept = len(saved_darks.frames) if saved_darks else 0
             dark_bracket = BracketCapture(device, chosen.camera, folder / "darks", backend=camera,
                                           profile=chosen.name, options=options, true_exposure_s=truth,
                                           show_progress=show_progress).shoot(plan, dark_notches=notches,
                                                                              resume=saved_darks)
-            shot += len(dark_bracket.frames) - (len(saved_darks.frames) if saved_darks else 0)
+            shot += len(dark_bracket.frames) - kept
             _log_frames(say, dark_bracket, folder / "darks")
     seconds = time.perf_counter() - started
     say(f"{shot} frames in {seconds:.1f} s ({seconds / max(shot, 1):.2f} s per frame) -> {lights_manifest}")

@@ -11,6 +11,9 @@ if TYPE_CHECKING:  # the command line reads CAMERA_KINDS without importing the s
     from hdrcam.profiles import Profile
 
 CAMERA_KINDS = ("sim", "sim-usb", "usb")
+# the smallest width and height of a simulated camera's frame, in pixels: LibRaw opens no RAW file smaller than
+# 22 px on a side (identify.cpp, "Early reject for damaged images": height < 22 || width < 22 -> not RAW)
+SIMULATED_MIN_SIDE_PX = 22
 
 
 def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=None, seed: int = 0,

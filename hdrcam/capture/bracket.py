@@ -22,7 +22,8 @@ from tqdm import tqdm
 
 from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
 from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
-from hdrcam.capture.notches import NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, nearest_shutter
+from hdrcam.capture.notches import (NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, iso_setting,
+                                    nearest_shutter, notch_step)
 from hdrcam.errors import HdrcamError, InputError, Interrupted, failure_message
 from hdrcam.io.atomic import TEMPORARY_SUFFIX
 from hdrcam.io.raw import read_raw
@@ -41,6 +42,16 @@ class BracketPlan:
     roi: tuple[int, int, int, int] | None = None  # x, y, width, height in pixels
     target_snr: float = 20.0
     snr_percentile: float = 5.0
+
+    def __post_init__(self):
+        """Refuse (InputError), before anything is shot or written, a plan the camera cannot take: an ISO it does not
+        offer, a step that is no whole number of shutter notches, a fixed bracket longer than the shutter's 30 s."""
+        if self.iso is not None:
+            iso_setting(self.iso)
+        if self.auto:
+            notch_step(self.ev_step)
+        else:
+            bracket_notches(self.shortest_s, self.stops, self.ev_step)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -55,7 +55,8 @@ class Camera(Protocol):
         """The exposure the camera is set to now."""
 
     def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
-        """Move to the shutter notch nearest ``exposure_s`` (and ISO); returns what the camera landed on."""
+        """Move to the shutter notch nearest ``exposure_s`` (seconds) and to ``iso``, one of the camera's ISO settings
+        (InputError otherwise: never another ISO than asked); returns what the camera landed on."""
 
     def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:
         """Expose one RAW frame and write it atomically as ``folder/stem.<camera's suffix>``.

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from fractions import Fraction
 
 from hdrcam.errors import InputError
@@ -72,17 +73,83 @@ def nearest_shutter(exposure_s: float) -> ShutterNotch:
 
 
 def bracket_notches(shortest_s: float, stops: int, ev_step: float) -> list[ShutterNotch]:
-    """``stops`` notches from the one nearest ``shortest_s`` towards longer exposures, ``ev_step`` EV apart."""
+    """``stops`` notches from the one nearest ``shortest_s`` (seconds) towards longer exposures, ``ev_step`` EV
+    apart; InputError, with the plans that fit, when the longest would be beyond the shutter's 30 s."""
+    step = notch_step(ev_step)
+    first = nearest_shutter(shortest_s).index
+    if first - (stops - 1) * step < 0:
+        raise InputError(_beyond_the_shutter(first, stops, step))
+    return [SHUTTER_NOTCHES[first - k * step] for k in range(stops)]
+
+
+def notch_step(ev_step: float) -> int:
+    """The number of 1/3 EV shutter notches in ``ev_step`` EV; InputError unless it is a positive multiple of 1/3."""
     step = round(ev_step * NOTCHES_PER_EV)
     if step < 1 or abs(step - ev_step * NOTCHES_PER_EV) > 1e-6:
-        raise InputError(f"ev_step must be a positive multiple of 1/3 EV, got {ev_step}")
-    first = nearest_shutter(shortest_s).index
-    indices = [first - k * step for k in range(stops)]
-    if indices[-1] < 0:
-        raise InputError(f"{stops} exposures {ev_step} EV apart from {shortest_s:g} s need longer than 30 s; "
-                         "choose a longer shortest exposure or fewer stops")
-    return [SHUTTER_NOTCHES[i] for i in indices]
+        raise InputError(f"ev_step must be a positive multiple of 1/3 EV (the shutter's notches), got {ev_step:g}")
+    return step
 
 
-def nearest_iso(iso: float) -> int:
-    return min(ISO_VALUES, key=lambda value: abs(math.log2(value / iso)))
+def _beyond_the_shutter(first: int, stops: int, step: int) -> str:
+    """Why ``stops`` exposures ``step`` notches apart from notch ``first`` do not fit the shutter (stops >= 2), and
+    the nearest plans that do: a shorter shortest exposure, fewer stops, a smaller EV step."""
+    span = (stops - 1) * step
+    longest_s = SHUTTER_NOTCHES[first].true_s * 2.0 ** (span / NOTCHES_PER_EV)
+    fixes = [f"fewer stops (--stops {first // step + 1} or fewer)"]
+    if span < len(SHUTTER_NOTCHES):
+        fixes.insert(0, f"a shorter shortest exposure (--shortest {_seconds(SHUTTER_NOTCHES[span])} or shorter)")
+    if first // (stops - 1) >= 1:
+        fixes.append(f"a smaller EV step (--ev-step {_ev_text(first // (stops - 1) / NOTCHES_PER_EV)} or less)")
+    plan = f"{stops} exposures {_ev_text(step / NOTCHES_PER_EV)} EV apart from {_seconds(SHUTTER_NOTCHES[first])} s"
+    return f"{plan} would need {longest_s:.4g} s, longer than the shutter's 30 s: choose {_one_of(fixes)}"
+
+
+def _one_of(choices: list[str]) -> str:
+    return choices[0] if len(choices) == 1 else ", ".join(choices[:-1]) + " or " + choices[-1]
+
+
+def _seconds(notch: ShutterNotch) -> str:
+    """A notch's label without the camera's seconds mark: '1/4000', '2.5'."""
+    return notch.label.rstrip('"')
+
+
+def _ev_text(ev: float) -> str:
+    """EV as people write it: a whole number, else thirds as a fraction ('1/3', '8/3'), else 3 significant digits."""
+    thirds = Fraction(ev).limit_denominator(NOTCHES_PER_EV)
+    return str(thirds) if abs(thirds - ev) < 1e-9 else f"{ev:.3g}"
+
+
+def ev_step_from_text(text: str) -> float:
+    """An EV step (EV) written as a fraction of integers equal to a multiple of 1/3 ('1/3', '2/3', '4/3', '3'), or as
+    a decimal that is a multiple of 1/3 rounded to the digits written: the camera's labels 0.3, 0.7, 1.3, 1.7, ...
+    and 0.33, 0.333, 0.67, 0.667 all stand for 1/3 or 2/3 EV. ValueError otherwise: 0.5 (the shutter moves in
+    1/3 EV notches), 0.35, 0.30 (rounded to two digits, 1/3 reads 0.33)."""
+    value, tolerance = _ev_number(text.strip())
+    thirds = round(value * NOTCHES_PER_EV)
+    if thirds < 1 or abs(value - Fraction(thirds, NOTCHES_PER_EV)) > tolerance:
+        raise ValueError(f"{text} EV is no whole number of the shutter's 1/3 EV notches: give a multiple of 1/3 as a "
+                         "fraction (1/3, 2/3, 1, 4/3) or as the camera labels it (0.3, 0.7, 1, 1.3, 1.7; or 0.33, "
+                         "0.67)")
+    return thirds / NOTCHES_PER_EV
+
+
+def _ev_number(text: str) -> tuple[Fraction, Fraction]:
+    """The exact value of '2/3' or '0.67', and how far from it the multiple of 1/3 it stands for may lie: nothing
+    for a fraction, half a unit of the last digit written for a decimal."""
+    if re.fullmatch(r"\d+/[1-9]\d*", text):
+        return Fraction(text), Fraction(0)
+    if re.fullmatch(r"\d+\.?\d*|\.\d+", text):
+        return Fraction(text), Fraction(1, 2 * 10 ** len(text.partition(".")[2]))
+    raise ValueError(f"expected a positive EV step such as 1, 2/3 or 0.7, got {text!r}")
+
+
+def iso_setting(iso: float) -> int:
+    """``iso`` as one of the camera's ISO settings (ISO_VALUES, 1/3 EV apart); InputError naming the nearest ones
+    otherwise: the camera would land on another ISO than asked, and the frames would disagree with the plan."""
+    if iso in ISO_VALUES:
+        return int(iso)
+    above = [value for value in ISO_VALUES if value > iso]
+    below = [value for value in ISO_VALUES if value < iso]
+    nearest = " and ".join(str(value) for value in (below[-1:] + above[:1]))
+    raise InputError(f"the camera offers no ISO {iso:g} (nearest: {nearest}); its settings are "
+                     + ", ".join(map(str, ISO_VALUES)))

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from hdrcam.capture.camera import CapturedFrame, ExposureSettings
-from hdrcam.capture.notches import ShutterNotch, nearest_iso, nearest_shutter
+from hdrcam.capture.notches import ShutterNotch, iso_setting, nearest_shutter
 from hdrcam.capture.scene import Scene
 from hdrcam.colorimetry import SONY_A7_XYZ_TO_CAMERA, camera_from_srgb
 from hdrcam.io.atomic import write_bytes_atomic
@@ -90,7 +90,7 @@ class SimulatedCamera:
         if exposure_s is not None:
             self._notch = nearest_shutter(exposure_s)
         if iso is not None:
-            self._iso = nearest_iso(iso)
+            self._iso = iso_setting(iso)
         return self.settings()
 
     @property
@@ -118,7 +118,8 @@ class SimulatedCamera:
         gain = self._iso / BASE_ISO
         exposure = self.true_exposure_s()
         charge = self._rate(dark) * (exposure / self.reference_exposure_s)  # full wells collected
-        charge[self.defects.hot_pixel_rows, self.defects.hot_pixel_columns] += self.defects.hot_pixel_rate_per_s * exposure
+        hot = self.defects
+        charge[hot.hot_pixel_rows, hot.hot_pixel_columns] += hot.hot_pixel_rate_per_s * exposure
         capacity_e = camera.full_well_e * FULL_WELL_HEADROOM
         electrons = rng.poisson(np.minimum(charge, 2 * FULL_WELL_HEADROOM) * camera.full_well_e).astype(np.float32)
         electrons = np.minimum(electrons, capacity_e)

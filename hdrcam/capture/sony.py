@@ -39,7 +39,7 @@ import usb.backend
 import usb.core
 
 from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
-from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, nearest_iso, nearest_shutter, shutter_from_ptp
+from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, iso_setting, nearest_shutter, shutter_from_ptp
 from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M,
                                       SONY_FOCUS_FOUND_VALUES, SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT,
                                       SONY_ISO_NR_SHIFT, SONY_PENDING_IMAGE_FLAG,
@@ -277,8 +277,7 @@ class SonyA7Camera:
             self._step_to(Property.SONY_SHUTTER_SPEED, target,
                           lambda value: _notch(value).index, len(SHUTTER_NOTCHES))
         if iso is not None:
-            target_iso = nearest_iso(iso)
-            self._step_to(Property.SONY_ISO, ISO_VALUES.index(target_iso), self._iso_index, len(ISO_VALUES))
+            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES))
         return self.settings()
 
     @staticmethod

@@ -6,7 +6,6 @@ so ``hdrcam --help`` and ``hdrcam COMMAND --help`` start in a fraction of a seco
 from __future__ import annotations
 
 import argparse
-import math
 from typing import TYPE_CHECKING
 
 from hdrcam.profiles import DEFAULT_PROFILE
@@ -59,15 +58,6 @@ def exposure_seconds(text: str) -> float:
     if not 0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
     return value
-
-
-def thirds_of_ev(text: str) -> float:
-    """An exposure step in EV that the shutter can take: a multiple of 1/3 ('1', '2/3', '0.333', '3')."""
-    value = _fraction(text, "EV such as 1, 2/3 or 3")
-    notches = round(value * 3) if math.isfinite(value) else 0
-    if notches < 1 or abs(notches - value * 3) > 0.01:
-        raise argparse.ArgumentTypeError(f"must be a positive multiple of 1/3 EV (the shutter's notches), got {text!r}")
-    return notches / 3
 
 
 def integers(count: int, separator: str = ",", minimum: int = 0):

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hdrcam.capture.backends import CAMERA_KINDS
-from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
-                                  thirds_of_ev)
+from hdrcam.capture.backends import CAMERA_KINDS, SIMULATED_MIN_SIDE_PX
+from hdrcam.capture.notches import ev_step_from_text, iso_setting
+from hdrcam.cli.arguments import add_profile_option, exposure_seconds, integers, positive_float, positive_int
+from hdrcam.errors import InputError
 
 
 def register(commands) -> None:
@@ -19,11 +20,15 @@ def register(commands) -> None:
     add_profile_option(parser)
     parser.add_argument("--out", type=Path, required=True, help="new folder for the frames and bracket.json")
     parser.add_argument("--stops", type=positive_int, default=None, help="number of exposures (--auto: at most)")
-    parser.add_argument("--ev-step", type=thirds_of_ev, default=None,
-                        help="EV between exposures, a multiple of 1/3 (e.g. 1, 2/3, 3)")
+    parser.add_argument("--ev-step", type=ev_step_argument, default=None,
+                        help="EV between exposures, a multiple of 1/3 (the shutter's notches): a fraction (1/3, 2/3, "
+                             "4/3, 3) or the camera's label (0.3, 0.7, 1, 1.3, 1.7, 2, 2.3, ...; 0.33 or 0.667 also "
+                             "mean 1/3 and 2/3)")
     parser.add_argument("--shortest", type=exposure_seconds, default=1 / 4000, metavar="S",
                         help="shortest exposure, e.g. 1/4000 (--auto: the first one tried)")
-    parser.add_argument("--iso", type=positive_float, default=100.0, help="ISO (default 100)")
+    parser.add_argument("--iso", type=iso_argument, default=100.0,
+                        help="ISO, one of the camera's settings: 100, 125, 160, 200, ... 25600 in 1/3 EV steps "
+                             "(default 100)")
     parser.add_argument("--auto", action="store_true",
                         help="only the exposures the scene needs (no clipping in the ROI, SNR target reached)")
     parser.add_argument("--roi", type=integers(4), default=None, metavar="X,Y,W,H",
@@ -37,13 +42,31 @@ def register(commands) -> None:
                             help="point[:POWER] | pinholes[:POWER[:SPACING]] (PSF calibration target) | night | "
                                  "flat[:LEVEL] | FILE.exr")
     simulation.add_argument("--psf", default="doe", help="doe (the profile's DOE) | dirac | FILE.exr")
-    simulation.add_argument("--size", type=integers(2, "x", minimum=2), default=None, metavar="WxH",
-                            help="frame size (default: the profile's sensor)")
+    simulation.add_argument("--size", type=integers(2, "x", minimum=SIMULATED_MIN_SIDE_PX), default=None, metavar="WxH",
+                            help=f"frame size in pixels, at least {SIMULATED_MIN_SIDE_PX}x{SIMULATED_MIN_SIDE_PX} "
+                                 "(LibRaw opens no smaller RAW file; default: the profile's sensor)")
     simulation.add_argument("--seed", type=int, default=0, help="noise, scene and defect seed")
     simulation.add_argument("--hot-pixels", type=float, default=2e-5, metavar="FRACTION")
     simulation.add_argument("--exposure-error", type=float, default=0.02, metavar="FRACTION",
                             help="largest per-notch error of the true shutter time (default 0.02)")
     parser.set_defaults(run=run)
+
+
+def ev_step_argument(text: str) -> float:
+    """--ev-step in EV (hdrcam.capture.notches.ev_step_from_text)."""
+    try:
+        return ev_step_from_text(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def iso_argument(text: str) -> float:
+    """--iso: a positive number that is one of the camera's ISO settings."""
+    try:
+        iso_setting(value := positive_float(text))
+    except InputError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return value
 
 
 def run(arguments: argparse.Namespace) -> int:

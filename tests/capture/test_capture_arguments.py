@@ -1,0 +1,183 @@
+"""What ``capture bracket`` accepts: frame sizes LibRaw opens, the camera's ISO settings, EV steps as fractions or
+the camera's labels, plans that fit the shutter (refused up front, with advice that works); the frame count of a
+resumed capture."""
+
+from __future__ import annotations
+
+import datetime as dt
+import errno
+import re
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+import hdrcam
+from hdrcam.capture.backends import SIMULATED_MIN_SIDE_PX as MIN_PX
+from hdrcam.capture.bracket import BracketPlan
+from hdrcam.capture.camera import ExposureSettings
+from hdrcam.capture.manifest import load_bracket
+from hdrcam.capture.notches import bracket_notches
+from hdrcam.cli import build_parser, main
+from hdrcam.errors import InputError
+from hdrcam.io.raw import read_raw
+from tests.capture.helpers import small_camera
+
+SMALL = dict(camera="sim", profile="simulated", scene="flat:0.2", psf="dirac", size_px=(64, 48), ev_step=3.0)
+
+
+def parse(*options: str):
+    return build_parser("capture").parse_args(["capture", "bracket", "--out", "x", *options])
+
+
+def capture_help(capsys) -> str:
+    """``capture bracket --help``, with its lines joined."""
+    with pytest.raises(SystemExit):
+        parse("--help")
+    return " ".join(capsys.readouterr().out.split())
+
+
+def refused_usage(capsys, *options: str) -> str:
+    """The one-line usage error (exit 2) of ``capture bracket OPTIONS``."""
+    with pytest.raises(SystemExit) as stopped:
+        parse(*options)
+    assert stopped.value.code == 2
+    return capsys.readouterr().err
+
+
+# -- frame size ---------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("width, height, opens", [(MIN_PX, MIN_PX, True), (MIN_PX + 1, MIN_PX, True),
+                                                   (MIN_PX - 1, MIN_PX, False), (MIN_PX, MIN_PX - 1, False)])
+def test_libraw_opens_a_simulated_dng_from_the_smallest_size_on(tmp_path, width, height, opens):
+    simulated = small_camera()[1]
+    path = tmp_path / "frame.dng"
+    path.write_bytes(simulated.frame_bytes(np.full((height, width), 600, np.uint16),
+                                           ExposureSettings(0.01, "1/100", 100.0, 2.8), dt.datetime(2024, 1, 1)))
+    if opens:
+        assert read_raw(path).bayer_dn.shape == (height, width)
+    else:
+        with pytest.raises(Exception, match="LibRaw does not open it"):
+            read_raw(path)
+
+
+@pytest.mark.parametrize("size", ["21x22", "22x21", "2x2"])
+def test_a_size_libraw_cannot_open_is_refused_before_anything_is_written(tmp_path, capsys, size):
+    assert "integers >= 22" in refused_usage(capsys, "--size", size)
+    width, height = map(int, size.split("x"))
+    with pytest.raises(InputError, match=f"use --size {max(width, 22)}x{max(height, 22)} or larger"):
+        hdrcam.capture_bracket(tmp_path / "b", **dict(SMALL, size_px=(width, height)))
+    assert not (tmp_path / "b").exists()
+    assert "at least 22x22" in capture_help(capsys)
+
+
+def test_the_smallest_size_captures_frames_libraw_reads(tmp_path):
+    bracket, _ = hdrcam.capture_bracket(tmp_path / "b", **dict(SMALL, size_px=(22, 22), stops=2))
+    assert [read_raw(path).bayer_dn.shape for path in bracket.paths()] == [(22, 22)] * 2
+
+
+# -- ISO ----------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("iso, nearest", [(25, "100"), (64, "100"), (80, "100"), (137, "125 and 160"),
+                                          (51200, "25600")])
+def test_an_iso_the_camera_does_not_offer_is_refused_up_front_naming_the_nearest(tmp_path, capsys, iso, nearest):
+    error = refused_usage(capsys, "--iso", str(iso))
+    assert f"no ISO {iso} (nearest: {nearest})" in error and "100, 125, 160" in error and "25600" in error
+    with pytest.raises(InputError, match=f"nearest: {nearest}"):
+        BracketPlan(shortest_s=1 / 4000, stops=2, ev_step=3.0, iso=iso)
+    with pytest.raises(InputError, match="offers no ISO"):
+        hdrcam.capture_bracket(tmp_path / "b", **dict(SMALL, stops=2, iso=iso))
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("kind", ["sim", "sim-usb"])
+def test_cameras_land_on_the_iso_asked_or_refuse_it(kind):
+    camera, _ = small_camera(kind)
+    with camera:
+        assert camera.set_exposure(iso=125).iso == 125
+        for iso in (80, 137, 51200):
+            with pytest.raises(InputError, match="offers no ISO"):
+                camera.set_exposure(iso=iso)
+        assert camera.settings().iso == 125
+
+
+@pytest.mark.parametrize("kind", ["sim", "sim-usb"])
+def test_the_manifest_s_iso_is_the_frames_iso(tmp_path, kind):
+    hdrcam.capture_bracket(tmp_path / "b", **dict(SMALL, camera=kind, stops=2, iso=1250))
+    manifest = load_bracket(tmp_path / "b")
+    assert manifest.options["plan"]["iso"] == 1250 and [frame.iso for frame in manifest.frames] == [1250, 1250]
+
+
+# -- EV step ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, thirds", [("1/3", 1), ("0.3", 1), ("0.33", 1), ("0.333", 1), (".3", 1),
+                                          ("0.3333333333333333", 1), ("2/3", 2), ("0.7", 2), ("0.67", 2),
+                                          ("0.667", 2), ("1", 3), ("1.0", 3), ("4/3", 4), ("1.3", 4), ("1.33", 4),
+                                          ("1.7", 5), ("1.67", 5), ("2", 6), ("2.3", 7), ("2.33", 7), ("2.7", 8),
+                                          ("2.67", 8), ("3", 9), ("6/2", 9)])
+def test_ev_steps_are_read_as_fractions_or_the_camera_s_rounded_labels(text, thirds):
+    assert parse("--ev-step", text).ev_step == thirds / 3  # exactly the float of k/3, however it was written
+
+
+@pytest.mark.parametrize("text", ["0.5", "1/2", "1.5", "0.35", "0.30", "0.66", "0.4", "0", "0/3", "1/0", "-1",
+                                  "1e0", "nan", "inf", "one"])
+def test_ev_steps_that_are_no_whole_number_of_notches_are_refused(capsys, text):
+    error = refused_usage(capsys, "--ev-step", text)
+    assert "--ev-step" in error and ("1/3 EV notches" in error or "such as 1, 2/3 or 0.7" in error)
+
+
+def test_the_help_says_which_ev_steps_are_read(capsys):
+    text = capture_help(capsys)
+    assert "0.3, 0.7, 1, 1.3, 1.7" in text and "1/3, 2/3" in text
+
+
+# -- plans beyond the shutter ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("shortest_s, stops, ev_step, advice", [
+    (1 / 4000, 9, 3.0, "choose fewer stops (--stops 6 or fewer) or a smaller EV step (--ev-step 2 or less)"),
+    (1 / 60, 5, 3.0, "choose a shorter shortest exposure (--shortest 1/125 or shorter), fewer stops (--stops 4 or "
+                     "fewer) or a smaller EV step (--ev-step 8/3 or less)"),
+    (1 / 4000, 65, 1 / 3, "choose fewer stops (--stops 52 or fewer)"),
+    (30.0, 2, 1 / 3, "choose a shorter shortest exposure (--shortest 25 or shorter) or fewer stops (--stops 1 or "
+                     "fewer)")])
+def test_a_bracket_beyond_30_s_is_refused_with_plans_that_fit(shortest_s, stops, ev_step, advice):
+    with pytest.raises(InputError) as refused:
+        bracket_notches(shortest_s, stops, ev_step)
+    message = str(refused.value)
+    assert message.endswith(advice) and "longer than the shutter's 30 s" in message
+    assert f"{stops} exposures {Fraction(ev_step).limit_denominator(3)} EV apart" in message  # 1/3, not 0.333...
+    suggested = dict(re.findall(r"\((--[a-z-]+) (\S+) or", message))
+    plans = {"--shortest": lambda value, beyond: (float(Fraction(value)) * 2 ** (beyond / 3), stops, ev_step),
+             "--stops": lambda value, beyond: (shortest_s, int(value) + beyond, ev_step),
+             "--ev-step": lambda value, beyond: (shortest_s, stops, float(Fraction(value)) + beyond / 3)}
+    for option, value in suggested.items():  # each limit suggested fits, and is the limit: a notch more does not
+        assert len(bracket_notches(*plans[option](value, 0))) == plans[option](value, 0)[1]
+        with pytest.raises(InputError):
+            bracket_notches(*plans[option](value, 1))
+
+
+def test_a_bracket_beyond_30_s_is_refused_before_the_folder_is_claimed(tmp_path, capsys):
+    out = tmp_path / "b"
+    status = main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--size",
+                   "64x48", "--stops", "9", "--ev-step", "3", "--out", str(out)])
+    assert status == 1 and "--ev-step 2 or less" in capsys.readouterr().err and not out.exists()
+
+
+# -- resume -------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("failing_shot, shot_on_resume", [(2, 5), (5, 2)])  # 3 lights, then 3 darks
+def test_a_resumed_capture_counts_the_frames_it_shot(tmp_path, monkeypatch, failing_shot, shot_on_resume):
+    from hdrcam.capture.simulated import SimulatedCamera
+
+    capture, calls = SimulatedCamera.capture, []
+
+    def disk_full_once(self, folder, stem, *, dark=False):
+        calls.append(stem)
+        if len(calls) == failing_shot:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return capture(self, folder, stem, dark=dark)
+
+    options = dict(SMALL, stops=3, darks=True)
+    with monkeypatch.context() as patch:
+        patch.setattr(SimulatedCamera, "capture", disk_full_once)
+        with pytest.raises(OSError):
+            hdrcam.capture_bracket(tmp_path / "b", **options)
+    lines = []
+    bracket, darks = hdrcam.capture_bracket(tmp_path / "b", resume=True, log=lines.append, **options)
+    assert bracket.status == darks.status == "complete" and len(bracket.frames) == len(darks.frames) == 3
+    assert any(line.startswith(f"{shot_on_resume} frames in ") for line in lines), lines
