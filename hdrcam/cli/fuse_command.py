@@ -15,7 +15,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hdrcam.cli.arguments import add_profile_option
-from hdrcam.io.atomic import check_outputs
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_outputs, check_writable
 from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS
 from hdrcam.profiles import load_profile
 
@@ -54,6 +55,9 @@ def run(arguments: argparse.Namespace) -> int:
     inputs = bracket_input_files(arguments.bracket)
     if arguments.darks:
         inputs += bracket_input_files([arguments.darks], kind="dark")
+    check_writable(out, overwrite=True, inputs=inputs)  # an input given as the output is refused as such first
+    if out.suffix.lower() != ".exr":
+        raise InputError(f"--out {out}: name the EXR (NAME.exr); its preview is written beside it as NAME.png")
     check_outputs((out, preview), overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,

@@ -45,6 +45,10 @@ def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, 
         return [(path, frame.sha256) for frame, path in zip(bracket.frames, bracket.paths())]
     if len(sources) == 1 and sources[0].is_dir():
         return [(path, None) for path in raw_files(sources[0])]
+    for source in sources:
+        if source.is_dir() or source.suffix == ".json":
+            raise InputError(f"{source}: a {'folder' if source.is_dir() else 'manifest'} among several inputs; give "
+                             "one bracket (a bracket.json or a folder) or its RAW files")
     return [(path, None) for path in sources]
 
 
@@ -130,7 +134,8 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                                                         for (what, value), (_, expected) in pairs])
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
-        raise InputError("two frames of the bracket have the same exposure time: "
+        raise InputError(f"two {kind} frames of the bracket have the same exposure time (one frame per exposure"
+                         f"{'; average repeated darks first' if kind == 'dark' else ''}): "
                          + ", ".join(f"{f.metadata.path.name} {f.metadata.exposure_s:g} s" for f in frames))
     for frame in frames:
         if not np.isfinite(frame.metadata.exposure_s):

@@ -220,7 +220,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise InputError(f"{path}: truncated or damaged: its last {filled_rows} rows repeat one row (LibRaw fills "
                          "what a file lacks that way); copy it from the card again")
     if not metadata.exposure_s > 0:
-        raise InputError(f"{path}: the file has no exposure time; give the exposures in a bracket.json")
+        raise InputError(f"{path}: the file records no exposure time (EXIF ExposureTime), which merging needs; "
+                         "use the camera's original file")
     return metadata, bayer
 
 

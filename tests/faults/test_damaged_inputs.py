@@ -190,6 +190,19 @@ def test_tiny_files_beside_a_bracket_are_skipped_as_not_raw(workspace, tmp_path,
         assert run(["fuse", folder, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys)[0] == 0
 
 
+def test_several_brackets_at_once_and_repeated_darks_are_refused_saying_why(workspace, tmp_path, capsys):
+    for sources, mentions in (([workspace.bracket, workspace.pinholes], "a folder among several inputs"),
+                              ([workspace.bracket / "bracket.json", workspace.pinholes / "bracket.json"],
+                               "a manifest among several inputs")):
+        assert_failed_with_one_line(run(["fuse", *sources, "--profile", "simulated", "--out", tmp_path / "f.exr"],
+                                        capsys), 1, str(sources[0]), mentions)
+    darks = copy_bracket(workspace.bracket / "darks", tmp_path / "darks")
+    (darks / "bracket.json").unlink()
+    shutil.copyfile(darks / "dark-00.dng", darks / "dark-00b.dng")
+    assert_failed_with_one_line(run(["fuse", workspace.bracket, "--darks", darks, "--profile", "simulated", "--out",
+                                     tmp_path / "f.exr"], capsys), 1, "two dark frames", "average repeated darks")
+
+
 def test_an_empty_folder_to_ingest_is_one_line_on_stderr(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     status, out, lines = run(["ingest", tmp_path / "empty"], capsys)
