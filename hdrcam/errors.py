@@ -104,7 +104,8 @@ def os_error_message(error: OSError) -> str:
 def memory_message(error: BaseException) -> str:
     detail = str(error).strip().splitlines()[0] if str(error).strip() else ""
     return ("not enough memory" + (f" ({detail[:200]})" if detail else "")
-            + "; use smaller sizes (--size, --tile, --crop, --batch) or free memory")
+            + "; free memory, or give the command less to hold at once (fewer or smaller frames; --size, --tile, "
+            "--crop or --batch where it has them)")
 
 
 def is_out_of_memory(error: BaseException) -> bool:

@@ -19,9 +19,15 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, read_raw, sensor_fingerprint,
-                           warn_shading_not_applied)
+from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, read_raw,
+                           read_raw_metadata, sensor_fingerprint, warn_shading_not_applied)
+from hdrcam.limits import check_image_size
 from hdrcam.parallel import worker_threads
+
+
+FRAME_BYTES_PER_PIXEL = 2  # a decoded frame: LibRaw's uint16 buffer
+MERGED_BYTES_PER_PIXEL = 20  # the merge's rate (float32), usable-frame mask and the demosaiced float32 RGB, with
+# the preview and temporaries: a 24 MP bracket of five frames peaked at 706 MB (30 bytes a pixel with the frames')
 
 
 def bracket_files(sources: list[Path], kind: str = "light") -> list[tuple[Path, str | None]]:
@@ -80,6 +86,7 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     """
     files = bracket_files(sources, kind)
     from_folder = len(sources) == 1 and sources[0].is_dir() and not (sources[0] / MANIFEST_NAME).is_file()
+    _check_bracket_memory([path for path, _ in files])
     with ThreadPoolExecutor(worker_threads()) as pool:
         reads = [pool.submit(_read, path, kind == "light") for path, _ in files]  # decoding first: it takes longest
         work = [(pool.submit(sha256_of, path) if expected else None, read)
@@ -141,6 +148,20 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
         if not np.isfinite(frame.metadata.exposure_s):
             raise InputError(f"{frame.metadata.path}: exposure time is not finite")
     return frames
+
+
+def _check_bracket_memory(paths: list[Path]) -> None:
+    """Refuse (TooLargeError) a bracket whose frames, all held until the merge, and what the merge makes need more
+    memory than is available; sized from the first file LibRaw opens (a header read)."""
+    for path in paths if len(paths) > 1 else ():
+        try:
+            width_px, height_px = read_raw_metadata(path).raw_size_px
+        except NotRawError:  # a folder's other files are skipped when the frames are read
+            continue
+        bytes_per_pixel = FRAME_BYTES_PER_PIXEL * len(paths) + MERGED_BYTES_PER_PIXEL
+        check_image_size(f"{len(paths)} frames", height_px, width_px, bytes_per_pixel,
+                         "fuse fewer frames, or free memory")
+        return
 
 
 def _refuse_differences(meta: RawMetadata, reference: RawMetadata, checks) -> None:

@@ -11,6 +11,7 @@ instead of silently storing Inf.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import io
 from pathlib import Path
@@ -208,7 +209,8 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
             value = value.encode("utf-8", "backslashreplace").decode("utf-8")
         header[key] = value
     if OpenEXR.global_thread_count() < worker_threads():
-        OpenEXR.set_global_thread_count(worker_threads())  # compression of scanline blocks on every core
+        with contextlib.suppress(RuntimeError):  # threads it cannot start (a memory limit): it writes on this one
+            OpenEXR.set_global_thread_count(worker_threads())  # compression of scanline blocks on every core
     with atomic_path(Path(path), overwrite=overwrite) as temporary, open(temporary, "wb") as file:
         OpenEXR.File(header, pixels).write(file)  # through a Python file: any name works, a full disk names its cause
     return Path(path)

@@ -208,6 +208,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 orientation=_exif_orientation(int(raw.sizes.flip)))
     except InputError:
         raise
+    except (rawpy.LibRawUnsufficientMemoryError, rawpy.LibRawMemPoolOverflowError) as error:
+        raise MemoryError(f"LibRaw decoding {path.name}: {_libraw_reason(error)}") from None
     except rawpy.LibRawFileUnsupportedError as error:
         raise NotRawError(f"{path}: LibRaw does not open it as RAW ({_libraw_reason(error)})") from None
     except Exception as error:  # LibRaw raises many types for damaged files

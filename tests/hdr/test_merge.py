@@ -240,3 +240,21 @@ def test_frames_one_pixel_wide_merge(shape):
     merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
     expected = signal_dn / meta.exposure_s / (meta.white_level_dn - 512)  # relative units at ISO 100
     np.testing.assert_allclose(merged.rate, expected, rtol=1e-5)
+
+
+def test_a_bracket_too_large_for_the_memory_together_is_refused_before_decoding(monkeypatch):
+    """Each frame alone fits, all of them held until the merge (and what the merge makes) do not."""
+    import hdrcam.limits as limits
+    from hdrcam.errors import TooLargeError
+    from hdrcam.hdr.bracket_input import FRAME_BYTES_PER_PIXEL, MERGED_BYTES_PER_PIXEL
+    from hdrcam.io.raw import RAW_BYTES_PER_PIXEL
+
+    bracket = Path(__file__).parent / "data" / "bracket-96x64"
+    pixels = 96 * 64
+    together = (FRAME_BYTES_PER_PIXEL * 4 + MERGED_BYTES_PER_PIXEL) * pixels
+    assert RAW_BYTES_PER_PIXEL * pixels < 0.9 * together
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 0.9 * together)
+    with pytest.raises(TooLargeError, match="4 frames .* fuse fewer frames"):
+        read_bracket([bracket])
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 1.1 * together)
+    assert len(read_bracket([bracket])) == 4
