@@ -24,6 +24,7 @@ arithmetic does not depend on the strip, so a strip size changes nothing but the
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -33,12 +34,13 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.hdr.exposure_ratios import estimate_exposures
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import sensor_white_dn, tiled
+from hdrcam.io.raw_clipping import is_in_top_part, sensor_white_dn, tiled
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 MAX_FRAMES = 64  # bits of the widest usable-frame mask
+UINT16_WHITE_DN = 65535.0
 CLIP_MARGIN = 0.01  # of the black-to-clip range
 STRIP_ROWS = 64  # rows per work item: a strip's temporaries (64 x 6000 px float32, 1.5 MB each) stay in the
 # caches, and per-call costs (held under the GIL) are spread over enough pixels; the weighted passes of a 24 MP
@@ -180,6 +182,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     black = float(np.mean(meta.black_level_dn))
     clip_tile = clip_level_tile_dn(frames)
     white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
+    _warn_if_white_unconfirmed(frames[-1], white, black, clip_tile)
     noise = NoiseModel.from_camera(camera, iso, white, black)
     darks = darks or [None] * len(frames)
     read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
@@ -237,6 +240,18 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
         list(pool.map(merge_strip, row_strips))
     return BayerMerge(rate, variance, usable_frames == 0, exposures, labelled, clip, clip_tile, notes,
                       usable_frames, noise, read_variance, to_relative)
+
+
+def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: float, clip_tile_dn: np.ndarray) -> None:
+    """Warn when nothing confirms a white level of 65535 (a DNG's default for 16-bit samples, whatever the
+    sensor's depth) that scales the result: no frame clips (no pile-up) and even the longest frame stays below
+    the top part of the black-to-white range. For a 14-bit sensor every radiance would be 4x too small."""
+    if white_dn >= UINT16_WHITE_DN and np.all(clip_tile_dn >= white_dn) \
+            and not is_in_top_part(float(longest.bayer_dn.max()), black_dn, white_dn):
+        warnings.warn(f"no frame clips and the brightest sample ({int(longest.bayer_dn.max())} DN, "
+                      f"{longest.metadata.path.name}) stays below the top half of the range to the white level "
+                      f"{white_dn:g} DN: the radiance scale (full wells) assumes that white level; if the sensor "
+                      "clips lower, add a frame long enough to clip")
 
 
 def _weighted(rates: list[np.ndarray], times: np.ndarray, usable: list[np.ndarray],

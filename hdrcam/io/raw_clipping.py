@@ -84,8 +84,12 @@ def sensor_white_dn(white_level_dn: float, black_dn: float, clip_tile_dn: np.nda
     return highest if _below_top_part(highest, black_dn, white_level_dn) else float(white_level_dn)
 
 
+def is_in_top_part(value_dn: float, black_dn: float, white_level_dn: float) -> bool:
+    """True when ``value_dn`` lies in the part of black..white where a pile-up is searched for (SEARCH_FROM up)."""
+    return not _below_top_part(value_dn, black_dn, white_level_dn)
+
+
 def _below_top_part(value_dn: float, black_dn: float, white_level_dn: float) -> bool:
-    """True when ``value_dn`` lies below the part of black..white where a pile-up is searched for."""
     return value_dn < black_dn + SEARCH_FROM * (white_level_dn - black_dn)
 
 

@@ -258,3 +258,26 @@ def test_a_bracket_too_large_for_the_memory_together_is_refused_before_decoding(
         read_bracket([bracket])
     monkeypatch.setattr(limits, "available_memory_bytes", lambda: 1.1 * together)
     assert len(read_bracket([bracket])) == 4
+
+
+def test_a_white_level_of_65535_that_nothing_confirms_is_warned_about():
+    """A DNG declaring the 16-bit default white level over 14-bit data: with no frame clipping the radiance scale
+    would be 4x off unnoticed; a frame that clips (a pile-up at 16383) confirms the sensor's white instead."""
+    import dataclasses
+    import warnings
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    meta = dataclasses.replace(meta, white_level_dn=65535.0)
+    ramp = np.linspace(100, 3000, 96 * 64).reshape(64, 96)
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=meta.exposure_s * 2 ** k),
+                       np.minimum(512 + ramp * 2 ** k, 16383).astype(np.uint16)) for k in range(3)]
+    with pytest.warns(UserWarning, match="no frame clips.*white level 65535"):
+        merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    longer = frames + [RawFrame(dataclasses.replace(meta, exposure_s=meta.exposure_s * 8),
+                                np.minimum(512 + ramp * 8, 16383).astype(np.uint16))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        merged = merge_bayer(longer, PROFILE.camera, estimate_ratios=False)
+    assert merged.clip_level_dn == 16383 - 512
