@@ -41,6 +41,7 @@ from hdrcam.profiles import CameraSpec
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 MAX_FRAMES = 64  # bits of the widest usable-frame mask
 UINT16_WHITE_DN = 65535.0
+LIT_SIGMAS, LIT_FRACTION = 10.0, 1e-3  # a bracket that records light has more samples this far above black
 CLIP_MARGIN = 0.01  # of the black-to-clip range
 STRIP_ROWS = 64  # rows per work item: a strip's temporaries (64 x 6000 px float32, 1.5 MB each) stay in the
 # caches, and per-call costs (held under the GIL) are spread over enough pixels; the weighted passes of a 24 MP
@@ -184,6 +185,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
     _warn_if_white_unconfirmed(frames[-1], white, black, clip_tile)
     noise = NoiseModel.from_camera(camera, iso, white, black)
+    _warn_if_no_light(frames[-1], black, noise)
     darks = darks or [None] * len(frames)
     read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
     notes: list[str] = []
@@ -252,6 +254,16 @@ def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: flo
                       f"{longest.metadata.path.name}) stays below the top half of the range to the white level "
                       f"{white_dn:g} DN: the radiance scale (full wells) assumes that white level; if the sensor "
                       "clips lower, add a frame long enough to clip")
+
+
+def _warn_if_no_light(longest: RawFrame, black_dn: float, noise: NoiseModel) -> None:
+    """Warn when even the longest frame recorded almost no light (fewer than LIT_FRACTION of its samples
+    LIT_SIGMAS read-noise sigmas above black): dark frames given as lights, or a capped lens."""
+    lit = np.count_nonzero(longest.bayer_dn > black_dn + LIT_SIGMAS * max(noise.read_noise_dn, 1.0))
+    if lit < LIT_FRACTION * longest.bayer_dn.size:
+        warnings.warn(f"{longest.metadata.path.name}, the longest frame, recorded almost no light ({lit} samples "
+                      f"more than {LIT_SIGMAS:g} read-noise sigmas above black): dark frames given as lights "
+                      "(give them with --darks), or the lens was capped?")
 
 
 def _weighted(rates: list[np.ndarray], times: np.ndarray, usable: list[np.ndarray],
