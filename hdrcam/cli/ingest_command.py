@@ -8,7 +8,7 @@ from pathlib import Path
 from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder
 from hdrcam.cli.arguments import positive_float
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs
 
 
 def register(commands) -> None:
@@ -33,8 +33,10 @@ def run(arguments: argparse.Namespace) -> int:
     names = [out / f"bracket-{index:02d}.json" for index in range(1, len(result.brackets) + 1)]
     check_outputs(names, overwrite=arguments.overwrite)
     manifests = [bracket_manifest(frames, out, {"ingested_from": str(arguments.folder)}) for frames in result.brackets]
+    with atomic_paths(names, overwrite=arguments.overwrite) as temporaries:  # all of them, or none
+        for temporary, manifest in zip(temporaries, manifests):
+            temporary.write_text(manifest.to_json(), encoding="utf-8")
     for path, frames, manifest in zip(names, result.brackets, manifests):
-        manifest.write(out, path.name, overwrite=arguments.overwrite)
         exposures = ", ".join(f"{frame.exposure_s:g}" for frame in manifest.frames)
         print(f"{path}: {len(frames)} frames, ISO {frames[0].iso or '?'}, f/{frames[0].f_number or '?'}, "
               f"exposures {exposures} s")

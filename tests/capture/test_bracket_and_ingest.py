@@ -151,6 +151,32 @@ def test_ingest_separates_interleaved_brackets_and_reports_a_stray_file(tmp_path
     assert "exists" in capsys.readouterr().err
 
 
+def test_ingest_writes_every_manifest_or_none(tmp_path, capsys, monkeypatch):
+    """A full disk at the second manifest leaves no first one behind (a rerun found it and refused)."""
+    import errno
+
+    from hdrcam.capture.manifest import Bracket
+
+    _, simulated = small_camera("sim")
+    start = dt.datetime(2026, 5, 1, 21, 0, 0)
+    for k, exposure in enumerate((1 / 4000, 1 / 500, 1 / 60)):
+        _write_frame(simulated, tmp_path, f"a{k}.dng", exposure, 100, start + dt.timedelta(seconds=2 * k))
+        _write_frame(simulated, tmp_path, f"b{k}.dng", exposure, 400, start + dt.timedelta(seconds=2 * k + 1))
+    written = []
+    to_json = Bracket.to_json
+
+    def disk_full_at_the_second(self):
+        written.append(self)
+        if len(written) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return to_json(self)
+
+    monkeypatch.setattr(Bracket, "to_json", disk_full_at_the_second)
+    assert main(["ingest", str(tmp_path)]) == 1
+    assert "space" in capsys.readouterr().err and not list(tmp_path.glob("*.json"))
+    assert not [path for path in tmp_path.iterdir() if path.name.startswith(".")]
+
+
 def test_ingest_splits_back_to_back_brackets_on_a_repeated_exposure_and_skips_damaged_files(tmp_path):
     _, simulated = small_camera("sim")
     start = dt.datetime(2026, 5, 1, 21, 0, 0)
