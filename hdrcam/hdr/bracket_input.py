@@ -141,6 +141,7 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                                                         for (what, value), (_, expected) in pairs])
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
+        _refuse_copies(frames)
         raise InputError(f"two {kind} frames of the bracket have the same exposure time (one frame per exposure"
                          f"{'; average repeated darks first' if kind == 'dark' else ''}): "
                          + ", ".join(f"{f.metadata.path.name} {f.metadata.exposure_s:g} s" for f in frames))
@@ -148,6 +149,20 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
         if not np.isfinite(frame.metadata.exposure_s):
             raise InputError(f"{frame.metadata.path}: exposure time is not finite")
     return frames
+
+
+def _refuse_copies(frames: list[RawFrame]) -> None:
+    """InputError naming a frame that is a byte-identical copy of another of the same exposure (``frame (1).dng``
+    beside ``frame.dng``); only frames that share an exposure are hashed."""
+    by_exposure: dict[float, list[RawFrame]] = {}
+    for frame in frames:
+        by_exposure.setdefault(frame.metadata.exposure_s, []).append(frame)
+    for same in (group for group in by_exposure.values() if len(group) > 1):
+        originals: dict[str, Path] = {}
+        for path in sorted((frame.metadata.path for frame in same), key=lambda path: (len(path.name), path.name)):
+            original = originals.setdefault(sha256_of(path), path)
+            if original != path:
+                raise InputError(f"{path}: a copy of {original.name} (identical sha256); remove it from the bracket")
 
 
 def _check_bracket_memory(paths: list[Path]) -> None:

@@ -196,9 +196,17 @@ def test_several_brackets_at_once_and_repeated_darks_are_refused_saying_why(work
                                "a manifest among several inputs")):
         assert_failed_with_one_line(run(["fuse", *sources, "--profile", "simulated", "--out", tmp_path / "f.exr"],
                                         capsys), 1, str(sources[0]), mentions)
+    copies = copy_bracket(workspace.bracket, tmp_path / "copies")
+    (copies / "bracket.json").unlink()
+    shutil.rmtree(copies / "darks")
+    shutil.copyfile(copies / "frame-01.dng", copies / "frame-01 (1).dng")
+    assert_failed_with_one_line(run(["fuse", copies, "--profile", "simulated", "--out", tmp_path / "f.exr"], capsys),
+                                1, "frame-01 (1).dng: a copy of frame-01.dng")
     darks = copy_bracket(workspace.bracket / "darks", tmp_path / "darks")
     (darks / "bracket.json").unlink()
-    shutil.copyfile(darks / "dark-00.dng", darks / "dark-00b.dng")
+    second = bytearray((darks / "dark-00.dng").read_bytes())
+    second[-100] ^= 1  # another dark at that exposure: one sample differs
+    (darks / "dark-00b.dng").write_bytes(bytes(second))
     assert_failed_with_one_line(run(["fuse", workspace.bracket, "--darks", darks, "--profile", "simulated", "--out",
                                      tmp_path / "f.exr"], capsys), 1, "two dark frames", "average repeated darks")
 
