@@ -122,11 +122,14 @@ def _ev_text(ev: float) -> str:
 def ev_step_from_text(text: str) -> float:
     """An EV step (EV) written as a fraction of integers equal to a multiple of 1/3 ('1/3', '2/3', '4/3', '3'), or as
     a decimal that is a multiple of 1/3 rounded to the digits written: the camera's labels 0.3, 0.7, 1.3, 1.7, ...
-    and 0.33, 0.333, 0.67, 0.667 all stand for 1/3 or 2/3 EV. ValueError otherwise: 0.5 (the shutter moves in
-    1/3 EV notches), 0.35, 0.30 (rounded to two digits, 1/3 reads 0.33)."""
-    value, tolerance = _ev_number(text.strip())
+    and 0.33, 0.333, 0.67, 0.667 all stand for 1/3 or 2/3 EV, as do decimals of three digits or more cut short
+    (0.666, 1.6666). ValueError otherwise: 0.5 (the shutter moves in 1/3 EV notches), 0.35, 0.30 (rounded to two
+    digits, 1/3 reads 0.33)."""
+    value, unit = _ev_number(text.strip())
     thirds = round(value * NOTCHES_PER_EV)
-    if thirds < 1 or abs(value - Fraction(thirds, NOTCHES_PER_EV)) > tolerance:
+    exact = Fraction(thirds, NOTCHES_PER_EV)
+    truncated = 0 < unit <= Fraction(1, 1000) and value <= exact < value + unit
+    if thirds < 1 or (abs(value - exact) > unit / 2 and not truncated):
         raise ValueError(f"{text} EV is no whole number of the shutter's 1/3 EV notches: give a multiple of 1/3 as a "
                          "fraction (1/3, 2/3, 1, 4/3) or as the camera labels it (0.3, 0.7, 1, 1.3, 1.7; or 0.33, "
                          "0.67)")
@@ -134,12 +137,12 @@ def ev_step_from_text(text: str) -> float:
 
 
 def _ev_number(text: str) -> tuple[Fraction, Fraction]:
-    """The exact value of '2/3' or '0.67', and how far from it the multiple of 1/3 it stands for may lie: nothing
-    for a fraction, half a unit of the last digit written for a decimal."""
+    """The exact value of '2/3' or '0.67', and the unit of its last digit: 0 for a fraction (exact), 1/100 for
+    '0.67'."""
     if re.fullmatch(r"\d+/[1-9]\d*", text):
         return Fraction(text), Fraction(0)
     if re.fullmatch(r"\d+\.?\d*|\.\d+", text):
-        return Fraction(text), Fraction(1, 2 * 10 ** len(text.partition(".")[2]))
+        return Fraction(text), Fraction(1, 10 ** len(text.partition(".")[2]))
     raise ValueError(f"expected a positive EV step such as 1, 2/3 or 0.7, got {text!r}")
 
 

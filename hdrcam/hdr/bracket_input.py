@@ -19,8 +19,8 @@ import numpy as np
 from hdrcam.capture.ingest import raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
-from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, read_raw,
-                           read_raw_metadata, sensor_fingerprint, warn_shading_not_applied)
+from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, raw_size_px, read_raw,
+                           sensor_fingerprint, warn_shading_not_applied)
 from hdrcam.limits import check_image_size
 from hdrcam.parallel import worker_threads
 
@@ -167,16 +167,14 @@ def _refuse_copies(frames: list[RawFrame]) -> None:
 
 def _check_bracket_memory(paths: list[Path]) -> None:
     """Refuse (TooLargeError) a bracket whose frames, all held until the merge, and what the merge makes need more
-    memory than is available; sized from the first file LibRaw opens (a header read)."""
-    for path in paths if len(paths) > 1 else ():
-        try:
-            width_px, height_px = read_raw_metadata(path).raw_size_px
-        except NotRawError:  # a folder's other files are skipped when the frames are read
-            continue
-        bytes_per_pixel = FRAME_BYTES_PER_PIXEL * len(paths) + MERGED_BYTES_PER_PIXEL
-        check_image_size(f"{len(paths)} frames", height_px, width_px, bytes_per_pixel,
+    memory than is available; sized from the files LibRaw opens (their headers only: nothing is decoded; a
+    folder's other files are skipped, a damaged frame refused, when the frames are read)."""
+    sizes = [size for size in map(raw_size_px, paths) if size is not None] if len(paths) > 1 else []
+    if len(sizes) > 1:
+        width_px, height_px = sizes[0]
+        bytes_per_pixel = FRAME_BYTES_PER_PIXEL * len(sizes) + MERGED_BYTES_PER_PIXEL
+        check_image_size(f"{len(sizes)} frames", height_px, width_px, bytes_per_pixel,
                          "fuse fewer frames, or free memory")
-        return
 
 
 def _refuse_differences(meta: RawMetadata, reference: RawMetadata, checks) -> None:

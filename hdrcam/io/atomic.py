@@ -99,7 +99,8 @@ def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
 def atomic_paths(paths: Iterable[Path], *, overwrite: bool = False) -> Iterator[list[Path]]:
     """:func:`atomic_path` for several outputs of one command, published together once the body has written
     them all: a failure while writing any (a full disk, an interrupt) leaves none of them, and a failure while
-    publishing removes those this call had published (with ``overwrite``, what they replaced stays replaced)."""
+    publishing removes those this call had published - unless ``overwrite``: those replaced a file, and the new
+    one stays rather than leaving neither."""
     paths = [check_writable(Path(path), overwrite=overwrite) for path in paths]
     temporaries: list[Path] = []
     current = paths[0] if paths else None  # the output an OSError concerns
@@ -125,9 +126,10 @@ def atomic_paths(paths: Iterable[Path], *, overwrite: bool = False) -> Iterator[
         _name_the_output(error, dict(zip(map(str, temporaries), paths)), current)
         raise
     finally:
-        for temporary in temporaries:
-            with contextlib.suppress(OSError):
-                temporary.unlink(missing_ok=True)
+        with interrupts_deferred():  # a second signal here would leave the temporaries not yet removed
+            for temporary in temporaries:
+                with contextlib.suppress(OSError):
+                    temporary.unlink(missing_ok=True)
 
 
 def _publish_all(temporaries: list[Path], paths: list[Path], overwrite: bool) -> None:
@@ -138,7 +140,7 @@ def _publish_all(temporaries: list[Path], paths: list[Path], overwrite: bool) ->
             published.append(path)
             temporary.unlink(missing_ok=True)
     except BaseException:
-        for path in published:
+        for path in published if not overwrite else ():
             with contextlib.suppress(OSError):
                 path.unlink()
         raise
@@ -184,7 +186,7 @@ def _flush_to_disk(path: Path) -> None:
 
 def _name_the_output(error: OSError, outputs_of_temporaries: dict[str, Path], current: Path | None) -> None:
     """Make an OSError raised while writing name the output the user asked for: the output of the temporary it
-    names, else (naming no file) ``current``, the output being created, flushed or published."""
+    names, else (naming no file) ``current``, the output last created or flushed (or the only one)."""
     path = outputs_of_temporaries.get(str(error.filename)) if error.filename is not None else current
     if path is not None:
         error.filename = str(path)

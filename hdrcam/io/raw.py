@@ -123,6 +123,24 @@ def read_raw_metadata(path: str | Path) -> RawMetadata:
     return _read(Path(path), with_pixels=False)[0]
 
 
+def raw_size_px(path: str | Path) -> tuple[int, int] | None:
+    """(raw width, raw height) in pixels from LibRaw's header alone (nothing is decoded), or None for a file LibRaw
+    does not open: reading it in full reports why."""
+    import rawpy
+
+    raw = rawpy.RawPy()
+    try:
+        with _libraw_stderr_silenced(), _libraw_path(Path(path)) as libraw_path:
+            raw.open_file(libraw_path)
+        return int(raw.sizes.raw_width), int(raw.sizes.raw_height)
+    except (rawpy.LibRawUnsufficientMemoryError, rawpy.LibRawMemPoolOverflowError) as error:
+        raise MemoryError(f"LibRaw opening {Path(path).name}: {_libraw_reason(error)}") from None
+    except Exception:  # LibRaw raises many types for files it does not open
+        return None
+    finally:
+        raw.close()
+
+
 RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer (uint16, kept: the frame is a view of it) and the frame's share of the
 # merge (float32 rate and variance, a mask) and of the demosaiced float32 RGB
 
@@ -234,13 +252,15 @@ def _libraw_path(path: Path):
     try:
         str(path).encode("utf-8")
     except UnicodeEncodeError:
-        descriptor = os.open(path, os.O_RDONLY)
-        try:
-            yield f"/dev/fd/{descriptor}"
-        finally:
-            os.close(descriptor)
+        pass  # not inside the handler: the body's own exceptions would chain to this one
+    else:
+        yield str(path)
         return
-    yield str(path)
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        yield f"/dev/fd/{descriptor}"
+    finally:
+        os.close(descriptor)
 
 
 def repeated_tail_rows(bayer_dn: np.ndarray) -> int:

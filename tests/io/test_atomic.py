@@ -33,3 +33,31 @@ def test_written_files_get_the_usual_mode_not_mkstemps_0600(tmp_path):
     finally:
         os.umask(mask)
     assert path.stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_outputs_published_together_fail_together(tmp_path, monkeypatch, overwrite):
+    """The second output's publication fails: a new pair leaves neither; with overwrite the first output (which
+    replaced its old file) stays new rather than leaving neither, and the second keeps its old bytes."""
+    import errno
+
+    from hdrcam.io import atomic
+
+    first, second = tmp_path / "a.exr", tmp_path / "a.png"
+    if overwrite:
+        first.write_bytes(b"old exr")
+        second.write_bytes(b"old png")
+    publish = atomic._publish
+
+    def fail_the_second(temporary, path, overwrite):
+        if path == second:
+            raise OSError(errno.EIO, "Input/output error", str(path))
+        publish(temporary, path, overwrite)
+
+    monkeypatch.setattr(atomic, "_publish", fail_the_second)
+    with pytest.raises(OSError, match="a.png"):
+        with atomic.atomic_paths([first, second], overwrite=overwrite) as (new_first, new_second):
+            new_first.write_bytes(b"new exr")
+            new_second.write_bytes(b"new png")
+    left = {path.name: path.read_bytes() for path in tmp_path.iterdir()}
+    assert left == ({"a.exr": b"new exr", "a.png": b"old png"} if overwrite else {})

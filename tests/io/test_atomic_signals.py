@@ -99,3 +99,25 @@ def test_outside_a_deferred_block_a_signal_is_raised_at_once():
         with pytest.raises(Interrupted):
             signal.raise_signal(signal.SIGINT)
             pytest.fail("the signal was not raised at once")
+
+
+def test_a_second_signal_while_the_temporaries_are_removed_leaves_none(tmp_path, monkeypatch):
+    """A second Ctrl-C during the cleanup of the first is held until every temporary is gone."""
+    import os
+    from pathlib import Path
+
+    unlink, calls = Path.unlink, []
+
+    def unlink_and_signal_once(path, missing_ok=False):
+        if not calls:
+            calls.append(path)
+            os.kill(os.getpid(), signal.SIGINT)
+        return unlink(path, missing_ok=missing_ok)
+
+    with termination_signals_raised(), pytest.raises(Interrupted):
+        monkeypatch.setattr(Path, "unlink", unlink_and_signal_once)
+        with atomic_paths([tmp_path / "out.bin", tmp_path / "out.png"]) as (first, _):
+            first.write_bytes(b"data")
+            raise Interrupted(signal.SIGINT)
+    monkeypatch.undo()
+    assert calls and list(tmp_path.iterdir()) == []
