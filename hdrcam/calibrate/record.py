@@ -11,7 +11,7 @@ import numpy as np
 from hdrcam.calibrate.effective_psf import green_centroid_offset
 from hdrcam.calibrate.psf_calibration import PsfCalibration
 from hdrcam.capture.manifest import sha256_of, software_versions
-from hdrcam.io.atomic import write_text_atomic
+from hdrcam.io.atomic import atomic_paths, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.preview import log_psf_rgb, radial_profile_plot, side_by_side
@@ -66,10 +66,11 @@ def write_record(folder: Path, calibration: PsfCalibration, profile: Profile, co
     psf = calibration.psf
     document = record_document(calibration, profile, command)
     paths = [folder / name for name in OUTPUT_NAMES]
-    write_exr(paths[0], psf.transpose(1, 2, 0).astype(np.float32),
-              attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m, "colour": "camera RGB",
-                          "units": "unit sum per channel", "record": RECORD_FORMAT}, overwrite=overwrite)
-    write_text_atomic(paths[1], json.dumps(document, indent=1) + "\n", overwrite=overwrite)
     panels = [log_psf_rgb(np.repeat(psf[c:c + 1], 3, axis=0)) for c in range(3)]
-    write_png(paths[2], side_by_side(panels + [radial_profile_plot(psf)]), overwrite=overwrite)
+    with atomic_paths(paths, overwrite=overwrite) as (exr, record, preview):  # all three, or none
+        write_exr(exr, psf.transpose(1, 2, 0).astype(np.float32),
+                  attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m, "colour": "camera RGB",
+                              "units": "unit sum per channel", "record": RECORD_FORMAT}, overwrite=True)
+        write_text_atomic(record, json.dumps(document, indent=1) + "\n", overwrite=True)
+        write_png(preview, side_by_side(panels + [radial_profile_plot(psf)]), overwrite=True)
     return paths

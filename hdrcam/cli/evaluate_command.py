@@ -37,6 +37,8 @@ def register(commands) -> None:
 
 
 def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
+    from hdrcam.evaluate.scoring import NETWORK_SUFFIX
+
     if not entries:
         return {"hdrcam": None}
     labelled = {}
@@ -47,6 +49,10 @@ def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
         if label in labelled or label in ("ldr", "hdrcnn-blend"):
             raise InputError(f"checkpoint label {label!r} is used twice or reserved; write LABEL=FILE")
         labelled[label] = path
+    for label in labelled:  # each label's network alone is scored as LABEL-network
+        if label.endswith(NETWORK_SUFFIX) and label[:-len(NETWORK_SUFFIX)] in labelled:
+            raise InputError(f"checkpoint label {label!r} is the name of {label[:-len(NETWORK_SUFFIX)]!r}'s network "
+                             "alone; write another LABEL=FILE")
     return labelled
 
 
@@ -66,7 +72,8 @@ def run(arguments: argparse.Namespace) -> int:
         raise InputError(f"--size must be a multiple of 16 and at least 32, got {arguments.size}")
     check_image_size("--size", arguments.size, arguments.size, WINDOW_BYTES_PER_PIXEL + FRAME_BYTES_PER_PIXEL,
                      "use a smaller --size")
-    check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite)
+    inputs = [path for path in (*_labelled(arguments.checkpoint).values(), arguments.psf) if path is not None]
+    check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite, inputs=inputs)
     models = {label: load_model(path, vgg_weights=arguments.vgg_weights)
               for label, path in _labelled(arguments.checkpoint).items()}
     psf = load_psf(arguments.psf) if arguments.psf else None

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import compute_device, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_writable, same_file_key
+from hdrcam.io.atomic import atomic_paths, check_writable, same_file_key
 from hdrcam.io.demosaic import DEFAULT_METHOD, METHODS
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
@@ -87,13 +87,15 @@ def run(arguments: argparse.Namespace) -> int:
     if dtype != torch.float32 and device.type != "cuda":
         raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
     planned: dict[str, Path] = {}
+    inputs = [*arguments.inputs, *(path for path in (arguments.psf, arguments.checkpoint, arguments.partner)
+                                   if isinstance(path, Path))]
     for source in arguments.inputs:
         for path in output_paths(arguments.out, source):
             if same_file_key(path) in planned:
                 raise InputError(f"{source} and {planned[same_file_key(path)]} would both write {path}; "
                                  "rename one of them")
             planned[same_file_key(path)] = source
-            check_writable(path, overwrite=arguments.overwrite, inputs=arguments.inputs)
+            check_writable(path, overwrite=arguments.overwrite, inputs=inputs)
     if arguments.streak_fit and arguments.partner:
         raise InputError("--streak-fit refits one network's proposal: leave out --partner")
     model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
@@ -130,11 +132,13 @@ def run(arguments: argparse.Namespace) -> int:
                       "fallback_fraction": round(result.fallback_fraction, 4)}
         pixels = np.concatenate([result.hdr, streaks.mask[..., None].astype(np.float32),
                                  result.confidence[..., None]], axis=-1)
-        write_exr(exr_path, pixels, channel_names=("R", "G", "B", "unreliable", "confidence"),
-                  attributes=attributes, overwrite=arguments.overwrite)
-        write_png(png_path, display_oriented(tonemap_rgb(result.hdr), orientation), overwrite=arguments.overwrite)
-        write_png(confidence_path, display_oriented(confidence_preview(result.confidence), orientation),
-                  overwrite=arguments.overwrite)
+        with atomic_paths((exr_path, png_path, confidence_path), overwrite=arguments.overwrite) as (
+                exr_temporary, png_temporary, confidence_temporary):  # a frame's three files, or none
+            write_exr(exr_temporary, pixels, channel_names=("R", "G", "B", "unreliable", "confidence"),
+                      attributes=attributes, overwrite=True)
+            write_png(png_temporary, display_oriented(tonemap_rgb(result.hdr), orientation), overwrite=True)
+            write_png(confidence_temporary, display_oriented(confidence_preview(result.confidence), orientation),
+                      overwrite=True)
         print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
                           "confidence": str(confidence_path), "size": list(frame.shape[:2]),
                           "seconds": round(time.perf_counter() - started, 2), "work": result.tiles.summary(),

@@ -49,8 +49,10 @@ def run(arguments: argparse.Namespace) -> int:
     if not 0.0 < arguments.clipped_fraction < 1.0:
         raise InputError("--clipped-fraction must lie between 0 and 1")
     outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
-    scene_inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
-    check_outputs(outputs, overwrite=arguments.overwrite, inputs=scene_inputs)
+    inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
+    inputs += [Path(arguments.psf)] if arguments.psf and arguments.psf not in FIXED_PSFS else []
+    inputs += [arguments.checkpoint] if arguments.checkpoint else []
+    check_outputs(outputs, overwrite=arguments.overwrite, inputs=inputs)
     model = load_model(arguments.checkpoint) if arguments.checkpoint or not arguments.psf else None
     profile = load_profile(model.profile if model else "simulated")
     if arguments.psf:

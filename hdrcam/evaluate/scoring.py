@@ -28,6 +28,7 @@ from hdrcam.profiles import load_profile
 from hdrcam.train.checkpoint import TrainedModel
 from hdrcam.train.optical_capture import OpticalCapture
 
+NETWORK_SUFFIX = "-network"  # LABEL-network: a checkpoint's network alone
 BLEND_START = 0.95  # HDR-CNN's blending threshold on the brightest channel
 
 
@@ -85,7 +86,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                 outputs["ldr"] = frame
                 outputs["hdrcnn-blend"] = hdrcnn_blend(frame, result.network_hdr)
             outputs[label] = result.hdr
-            outputs[f"{label}-network"] = result.network_hdr
+            outputs[f"{label}{NETWORK_SUFFIX}"] = result.network_hdr
         rows += [ScoredImage(name, method, all_metrics(image, truth), fraction) for method, image in outputs.items()]
         if index < examples:
             shown.append(Example(name, truth, outputs))

@@ -116,6 +116,38 @@ def test_fuse_publishes_its_exr_and_preview_together_or_neither(workspace, tmp_p
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("name, module, function", [("reconstruct", "hdrcam.preview", "confidence_preview"),
+                                                     ("calibrate", "hdrcam.calibrate.record", "radial_profile_plot")])
+def test_a_failure_at_the_last_output_leaves_none_of_the_set(name, module, function, workspace, tmp_path, capsys,
+                                                            monkeypatch):
+    """reconstruct's EXR and previews of a frame, calibrate's PSF, record and preview: all, or none."""
+    import errno
+    import importlib
+
+    def full_disk(*arguments, **options):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(importlib.import_module(module), function, full_disk)
+    out = tmp_path / "out"
+    assert_failed_with_one_line(run(command_lines(workspace, out)[name], capsys), 1, "no space")
+    assert not [path for path in tmp_path.rglob("*") if path.is_file()]
+
+
+@pytest.mark.parametrize("argv", [
+    lambda ws, t: ["simulate", "night", "--psf", t / "psf.exr", "--size", "32", "32", "--out", t / "psf.exr",
+                   "--overwrite"],
+    lambda ws, t: ["reconstruct", ws.frame, "--psf", t / "frame.exr", "--out", t, "--overwrite"],
+    lambda ws, t: ["evaluate", "--data", ws.root, "--psf", t / "summary.md", "--out", t, "--overwrite"],
+])
+def test_a_psf_named_as_an_output_is_refused_as_an_input(argv, workspace, tmp_path, capsys):
+    """--psf files are inputs: --overwrite never replaces them."""
+    command = argv(workspace, tmp_path)
+    psf = command[command.index("--psf") + 1]
+    psf.write_bytes(workspace.psf.read_bytes())
+    assert_failed_with_one_line(run(command, capsys), 1, str(psf), "is also an input")
+    assert psf.read_bytes() == workspace.psf.read_bytes()
+
+
 @pytest.mark.parametrize("target", ["bracket.json", "darks/bracket.json", "darks/dark-00.dng"])
 def test_overwrite_never_replaces_a_manifest_or_a_dark_frame(workspace, target, capsys):
     """The bracket's and the darks' manifests and the dark frames are inputs too."""
