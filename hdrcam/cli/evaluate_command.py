@@ -88,6 +88,9 @@ def run(arguments: argparse.Namespace) -> int:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
                                          partner=partners, progress=progress)
+    if not rows:
+        raise InputError(f"{arguments.data}: no photograph could be scaled so that 1.5 % of its pixels exceed 1 "
+                         "(each has a plateau at its brightest); nothing scored")
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "

@@ -16,12 +16,13 @@ paper's test protocol). Each scene is captured with the same noise seed for ever
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import torch
 
 from hdrcam.api import reconstruct, resolve_partner
-from hdrcam.data.saturation import clipped_fraction
+from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction
 from hdrcam.data.scenes import SceneSource
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
@@ -70,8 +71,15 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     rows, shown = [], []
     for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
-        radiance = torch.from_numpy(scene).permute(2, 0, 1)[None]
         fraction = clipped_fraction(truth)
+        if not TEST_CLIPPED_FRACTION / 2 <= fraction <= 2 * TEST_CLIPPED_FRACTION:
+            warnings.warn(f"{name}: not scored - scaled as the protocol asks, {100 * fraction:.2f} % of its pixels "
+                          f"exceed 1, not {100 * TEST_CLIPPED_FRACTION:g} % (a plateau at its brightest: saturated "
+                          "at source, or uniform)")
+            if progress:
+                progress.update()
+            continue
+        radiance = torch.from_numpy(scene).permute(2, 0, 1)[None]
         outputs = {}
         for label, model in models.items():
             capture = captures[label]
