@@ -6,12 +6,17 @@ so ``hdrcam --help`` and ``hdrcam COMMAND --help`` start in a fraction of a seco
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hdrcam.profiles import DEFAULT_PROFILE
 
 if TYPE_CHECKING:
     import torch
+
+MAX_SEED = 2 ** 32 - 1  # numpy's seed sequences refuse negative seeds, torch's generators those past 2^64
 
 
 def positive_float(text: str) -> float:
@@ -40,6 +45,18 @@ def _int_at_least(text: str, minimum: int) -> int:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
     if value < minimum:
         raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {text!r}")
+    return value
+
+
+def random_seed(text: str) -> int:
+    """A --seed: an integer from 0 to MAX_SEED, refused as a usage error before any work otherwise."""
+    message = f"expected a seed from 0 to {MAX_SEED} (2^32 - 1), got {text!r}"
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(message) from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(message)
     return value
 
 
@@ -73,6 +90,19 @@ def integers(count: int, separator: str = ",", minimum: int = 0):
                                              f"{separator!r}, got {text!r}")
         return values
     return parse
+
+
+@contextlib.contextmanager
+def naming_input(path: Path) -> Iterator[None]:
+    """Put ``path`` in front of an InputError raised while reading it, when the message does not name it yet."""
+    from hdrcam.errors import InputError
+
+    try:
+        yield
+    except InputError as error:
+        if str(path) in str(error):
+            raise
+        raise InputError(f"{path}: {error}") from error
 
 
 def add_profile_option(parser: argparse.ArgumentParser) -> None:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 from hdrcam.capture.backends import CAMERA_KINDS, SIMULATED_MIN_SIDE_PX
 from hdrcam.capture.notches import ev_step_from_text, iso_setting
-from hdrcam.cli.arguments import add_profile_option, exposure_seconds, integers, positive_float, positive_int
+from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
+                                  random_seed)
 from hdrcam.errors import InputError
 
 
@@ -45,7 +46,7 @@ def register(commands) -> None:
     simulation.add_argument("--size", type=integers(2, "x", minimum=SIMULATED_MIN_SIDE_PX), default=None, metavar="WxH",
                             help=f"frame size in pixels, at least {SIMULATED_MIN_SIDE_PX}x{SIMULATED_MIN_SIDE_PX} "
                                  "(LibRaw opens no smaller RAW file; default: the profile's sensor)")
-    simulation.add_argument("--seed", type=int, default=0, help="noise, scene and defect seed")
+    simulation.add_argument("--seed", type=random_seed, default=0, help="noise, scene and defect seed")
     simulation.add_argument("--hot-pixels", type=float, default=2e-5, metavar="FRACTION")
     simulation.add_argument("--exposure-error", type=float, default=0.02, metavar="FRACTION",
                             help="largest per-notch error of the true shutter time (default 0.02)")

@@ -19,7 +19,7 @@ import json
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import positive_int
+from hdrcam.cli.arguments import positive_int, random_seed
 from hdrcam.errors import OutputExistsError, StepFailed
 
 
@@ -31,7 +31,8 @@ def register(commands) -> None:
                              "PSF; 0 reuses the shipped networks (default 30)")
     parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),
                         help="night frame size (default 768 1024)")
-    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--seed", type=random_seed, default=3,
+                        help="seed of every capture and of the fine-tuning (default 3)")
     parser.set_defaults(run=run)
 
 

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import non_negative_int, positive_float, positive_int
+from hdrcam.cli.arguments import non_negative_int, positive_float, positive_int, random_seed
 from hdrcam.recon.presets import PRESETS
 from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
 
@@ -22,7 +22,7 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
     parser.add_argument("--crop", type=positive_int, default=None, metavar="PX",
                         help="crop size (multiple of 16, default 128)")
     parser.add_argument("--lr", type=positive_float, default=None, help="network learning rate")
-    parser.add_argument("--seed", type=int, default=None, help="(default 0)")
+    parser.add_argument("--seed", type=random_seed, default=None, help="(default 0)")
     parser.add_argument("--checkpoint-every", type=positive_int, default=None, metavar="K", help="(default 100)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out from its checkpoint; options given must match the run's")

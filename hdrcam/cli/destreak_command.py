@@ -28,7 +28,8 @@ def register(commands) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, metavar="INPUT", help="RAW, EXR or 16-bit TIFF/PNG frames")
     parser.add_argument("--method", choices=("fit", "network"), default="fit",
                         help="fit: subtract the fitted streaks (default); network: the windshield network's I_U")
-    parser.add_argument("--checkpoint", type=Path, default=SHIPPED_WINDSHIELD, help="with --method network")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="with --method network: the windshield network (default: the shipped one)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--no-gate", dest="gate", action="store_false",
                         help="with --method network: use the network's output everywhere, not only within "
@@ -48,12 +49,18 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.train.checkpoint import load_model, read_checkpoint
 
     network = arguments.method == "network"
-    if network and read_checkpoint(arguments.checkpoint)["config"].get("psf") != "windshield":
-        raise InputError(f"{arguments.checkpoint} was not trained on windshield streaks (design --psf windshield)")
+    if not network:
+        for option, given in (("--checkpoint", arguments.checkpoint is not None), ("--no-gate", not arguments.gate)):
+            if given:
+                raise InputError(f"{option} applies only to --method network (--method fit, the default, "
+                                 "uses no network)")
+    checkpoint = arguments.checkpoint or SHIPPED_WINDSHIELD
+    if network and read_checkpoint(checkpoint)["config"].get("psf") != "windshield":
+        raise InputError(f"{checkpoint} was not trained on windshield streaks (design --psf windshield)")
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
     check_outputs([path for pair in outputs for path in pair], overwrite=arguments.overwrite,
                   inputs=arguments.inputs)
-    model = load_model(arguments.checkpoint) if network else None
+    model = load_model(checkpoint) if network else None
     frames = [read_ldr_frame_and_orientation(source) for source in arguments.inputs]  # RAW: sensor orientation
     for source, (frame, orientation), (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
@@ -67,7 +74,8 @@ def run(arguments: argparse.Namespace) -> int:
             method = {"method": "streak fit", "angle_deg": "none" if fit.angle_deg is None else f"{fit.angle_deg:.2f}"}
             work = {"work": fit.summary()}
         write_exr(exr_path, clean, channel_names=("R", "G", "B"),
-                  attributes={"source": str(source), "orientation": orientation, **method}, overwrite=arguments.overwrite)
+                  attributes={"source": str(source), "orientation": orientation, **method},
+                  overwrite=arguments.overwrite)
         write_png(png_path, display_oriented(tonemap_rgb(clean), orientation), overwrite=arguments.overwrite)
         print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path), **work,
                           "seconds": round(time.perf_counter() - started, 2)}))

@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import positive_int
+from hdrcam.cli.arguments import positive_int, random_seed
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs
 
@@ -21,7 +21,7 @@ def register(commands) -> None:
     parser.add_argument("--data", default="procedural", help="'procedural' or a folder of .exr/.hdr files")
     parser.add_argument("--size", type=positive_int, default=512, metavar="PX", help="test crop (multiple of 16)")
     parser.add_argument("--count", type=positive_int, default=16, help="procedural test scenes (default 16)")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed of the captures")
+    parser.add_argument("--seed", type=random_seed, default=0, help="noise seed of the captures")
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="score reconstruct's one-pass option (no mirror-image second opinion)")
     partners = parser.add_mutually_exclusive_group()

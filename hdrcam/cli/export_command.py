@@ -6,15 +6,20 @@ import argparse
 import json
 from pathlib import Path
 
-from hdrcam.io.atomic import check_writable
+from hdrcam.errors import InputError
+from hdrcam.io.atomic import check_outputs
+
+# --format -> the --out suffixes it may write; reconstruct reads a .onnx file as ONNX and anything else as torch
+SUFFIXES = {"onnx": (".onnx",), "torchscript": (".pt", ".pth")}
 
 
 def register(commands) -> None:
     parser = commands.add_parser("export", help="export a network for deployment (ONNX, TorchScript)",
                                  description=__doc__)
     parser.add_argument("--checkpoint", type=Path, default=None, help="default: the shipped one")
-    parser.add_argument("--format", choices=("onnx", "torchscript"), required=True)
-    parser.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")
+    parser.add_argument("--format", choices=tuple(SUFFIXES), required=True)
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output file: .onnx for onnx, .pt or .pth for torchscript")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -22,9 +27,14 @@ def register(commands) -> None:
 
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.export import export_onnx, export_torchscript
-    from hdrcam.train.checkpoint import load_model
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model
 
-    check_writable(arguments.out, overwrite=arguments.overwrite)
+    suffixes = SUFFIXES[arguments.format]
+    if arguments.out.suffix.lower() not in suffixes:
+        raise InputError(f"--out {arguments.out}: a --format {arguments.format} file is named "
+                         f"{' or '.join('NAME' + suffix for suffix in suffixes)}")
+    inputs = [arguments.checkpoint or SHIPPED_CHECKPOINT] + ([arguments.vgg_weights] if arguments.vgg_weights else [])
+    check_outputs([arguments.out], overwrite=arguments.overwrite, inputs=inputs)
     model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     if arguments.format == "onnx":
         metadata = {"hdrcam_psf": json.dumps(model.psf.tolist()), "hdrcam_profile": model.profile,

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hdrcam import __version__
-from hdrcam.cli.arguments import add_profile_option, positive_int
+from hdrcam.cli.arguments import add_profile_option, naming_input, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs, write_text_atomic
 from hdrcam.profiles import load_profile
@@ -55,7 +55,8 @@ def run(arguments: argparse.Namespace) -> int:
         outputs["psf"] = arguments.out / "psf_quantised.exr"
     check_outputs(outputs.values(), overwrite=arguments.overwrite, inputs=[arguments.heightmap])
 
-    source = load_heightmap(arguments.heightmap, profile.doe.aperture_m)
+    with naming_input(arguments.heightmap):
+        source = load_heightmap(arguments.heightmap, profile.doe.aperture_m)
     heights = source.heights_m.numpy().astype(np.float64)
     try:
         quantised = quantise_heightmap(heights, profile.doe.h_max_m, levels)
@@ -99,8 +100,8 @@ def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, ov
         continuous = simulator()
         stepped = simulator(torch.as_tensor(quantised.heights_m, dtype=torch.float32))
     difference = (stepped.psf - continuous.psf).abs().sum(dim=(-2, -1))
-    write_exr(psf_path, stepped.psf.numpy().transpose(1, 2, 0), attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
-              overwrite=overwrite)
+    write_exr(psf_path, stepped.psf.numpy().transpose(1, 2, 0),
+              attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m}, overwrite=overwrite)
     return {"psf_l1_difference_rgb": difference.tolist(),
             "centre_energy_fraction_continuous_rgb": continuous.centre_energy_fraction.tolist(),
             "centre_energy_fraction_quantised_rgb": stepped.centre_energy_fraction.tolist()}
@@ -110,7 +111,8 @@ def _markdown(report: dict) -> str:
     lines = [f"# Fabrication report: {report['input']}", "",
              f"- {report['levels']} levels = {report['masks']} binary masks, step {report['step_m'] * 1e9:.2f} nm, "
              f"max height {report['max_height_m'] * 1e9:.2f} nm (h_max {report['h_max_m'] * 1e9:.1f} nm)",
-             f"- {report['features'][0]} x {report['features'][1]} features at {report['feature_pitch_m'] * 1e6:.3f} um",
+             f"- {report['features'][0]} x {report['features'][1]} features at "
+             f"{report['feature_pitch_m'] * 1e6:.3f} um",
              "- mask etch depths: " + ", ".join(f"{d * 1e9:.2f} nm" for d in report["mask_etch_depths_m"]),
              f"- design wavelength (h_max = one wave): {report['design_wavelength_m'] * 1e9:.1f} nm",
              f"- ideal {report['levels']}-level efficiency sinc^2(1/N): {report['ideal_multilevel_efficiency']:.4f}",

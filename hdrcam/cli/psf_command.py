@@ -10,7 +10,8 @@ from pathlib import Path
 
 from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
-                                  positive_float, positive_int)
+                                  naming_input, positive_float, positive_int, random_seed)
+from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs, write_text_atomic
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
 
@@ -24,7 +25,8 @@ def register(commands) -> None:
                         help="rank1 | freeform (seeded initialisation) | none (clear aperture) | FILE "
                              "(height-map EXR); default: the profile's DOE kind")
     parser.add_argument("--depth", type=positive_float, default=None, metavar="M",
-                        help="point-source distance in metres (default: the profile's, 5 m; 'inf' allowed)")
+                        help="point-source distance in metres, beyond the lens's focal length (default: the profile's, "
+                             "5 m; 'inf' allowed)")
     parser.add_argument("--out", type=Path, default=Path("psf-out"), help="output folder (default psf-out)")
     parser.add_argument("--psf-size", type=positive_int, default=None, metavar="PX", help="PSF crop in pixels")
     parser.add_argument("--wavelengths-per-band", type=positive_int, default=None, metavar="K")
@@ -32,7 +34,7 @@ def register(commands) -> None:
     parser.add_argument("--upsample", type=positive_int, default=None,
                         help="simulation samples per sensor pixel (default: coarsest unaliased)")
     parser.add_argument("--allow-aliasing", action="store_true", help="warn instead of refusing an aliased grid")
-    parser.add_argument("--seed", type=int, default=0, help="seed of a rank1/freeform initialisation")
+    parser.add_argument("--seed", type=random_seed, default=0, help="seed of a rank1/freeform initialisation")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     add_compute_options(parser)
     parser.set_defaults(run=run)
@@ -52,13 +54,19 @@ def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(arguments.profile)
     if arguments.propagation:
         profile = _with_propagation(profile, arguments.propagation)
+    focal_length_m = profile.lens.focal_length_m
+    if arguments.depth is not None and arguments.depth <= focal_length_m:
+        raise InputError(f"--depth {arguments.depth:g} m puts the source at or inside the focal length "
+                         f"({focal_length_m:g} m) of profile {profile.name}, where the lens forms no image; "
+                         "give a farther --depth")
     doe_choice = arguments.doe or profile.doe.kind
     inputs = [Path(doe_choice)] if doe_choice not in ("rank1", "freeform", "none") else []
     outputs = [arguments.out / name for name in OUTPUT_NAMES]
     check_outputs(outputs, overwrite=arguments.overwrite, inputs=inputs)
     dtype, device = compute_dtype(arguments.dtype), compute_device(arguments.device)
 
-    heightmap = heightmap_for_doe(profile.doe, doe_choice, seed=arguments.seed, dtype=dtype)
+    with naming_input(Path(doe_choice)):
+        heightmap = heightmap_for_doe(profile.doe, doe_choice, seed=arguments.seed, dtype=dtype)
     setup = OpticalSetup.from_profile(profile, source_distance_m=arguments.depth,
                                       wavelengths_per_band=arguments.wavelengths_per_band,
                                       psf_size_px=arguments.psf_size, upsample=arguments.upsample,

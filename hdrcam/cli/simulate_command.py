@@ -12,7 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
-from hdrcam.cli.arguments import positive_float, positive_int
+from hdrcam.cli.arguments import positive_float, positive_int, random_seed
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs
 from hdrcam.train.choices import FIXED_PSFS
@@ -29,7 +29,7 @@ def register(commands) -> None:
     parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),
                         help="frame size of a procedural scene (default 768 1024)")
     parser.add_argument("--clipped-fraction", type=positive_float, default=0.015)
-    parser.add_argument("--seed", type=int, default=0, help="scene and noise seed")
+    parser.add_argument("--seed", type=random_seed, default=0, help="scene and noise seed")
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
 

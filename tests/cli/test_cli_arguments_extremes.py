@@ -1,0 +1,114 @@
+"""Arguments at and past their limits: out-of-range seeds, a point source inside the focal length, an export
+onto its own checkpoint or under the other format's suffix, messages that name the file, and options that
+the chosen method ignores."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from hdrcam.cli import main
+from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT
+
+MAX_SEED = 2 ** 32 - 1
+
+SEED_COMMANDS = {
+    "psf": ["psf", "--profile", "simulated", "--psf-size", "15"],
+    "simulate": ["simulate", "night", "--psf", "dirac", "--size", "32", "32"],
+    "capture": ["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--size", "32x32",
+                "--stops", "2"],
+    "demo": ["demo", "--size", "32", "32", "--finetune-steps", "0"],
+    "finetune": ["finetune", "--steps", "1"],
+    "design": ["design", "--steps", "1"],
+    "evaluate": ["evaluate", "--count", "1"],
+}
+OUT_NAMES = {"psf": "p", "simulate": "s.exr", "capture": "b", "demo": "d", "finetune": "f", "design": "g",
+             "evaluate": "e"}
+
+
+def _usage_error(argv, capsys) -> str:
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(word) for word in argv])
+    error = capsys.readouterr().err
+    assert exit_info.value.code == 2 and error.count("\n") == 1, error
+    return error
+
+
+@pytest.mark.parametrize("seed", ["-1", str(MAX_SEED + 1), "99999999999999999999"])
+@pytest.mark.parametrize("command", sorted(SEED_COMMANDS))
+def test_a_seed_outside_32_bits_is_a_usage_error_before_any_work(command, seed, tmp_path, capsys):
+    out = tmp_path / OUT_NAMES[command]
+    error = _usage_error([*SEED_COMMANDS[command], "--seed", seed, "--out", out], capsys)
+    assert "--seed" in error and f"0 to {MAX_SEED}" in error
+    assert not out.exists()
+
+
+def test_simulate_runs_with_the_largest_seed(tmp_path):
+    assert main([*SEED_COMMANDS["simulate"], "--seed", str(MAX_SEED), "--out", str(tmp_path / "s.exr")]) == 0
+
+
+@pytest.mark.parametrize("depth", ["0.02", "0.01", "1e-9"])
+def test_psf_refuses_a_source_at_or_inside_the_focal_length(depth, tmp_path, capsys):
+    out = tmp_path / "p"
+    assert main(["psf", "--profile", "simulated", "--psf-size", "15", "--depth", depth, "--out", str(out)]) == 1
+    error = capsys.readouterr().err
+    assert "--depth" in error and "focal length (0.02 m)" in error
+    assert not out.exists()
+
+
+def test_export_refuses_to_overwrite_its_own_checkpoint(tmp_path, capsys):
+    checkpoint = tmp_path / "ck.pt"
+    shutil.copyfile(SHIPPED_CHECKPOINT, checkpoint)
+    before = checkpoint.read_bytes()
+    assert main(["export", "--format", "torchscript", "--checkpoint", str(checkpoint), "--out", str(checkpoint),
+                 "--overwrite"]) == 1
+    assert "is also an input" in capsys.readouterr().err
+    assert checkpoint.read_bytes() == before
+
+
+@pytest.mark.parametrize("format_, name", [("torchscript", "m2.onnx"), ("onnx", "m2.pt"), ("torchscript", "m2")])
+def test_export_refuses_an_out_suffix_of_another_format(format_, name, tmp_path, capsys):
+    out = tmp_path / name
+    assert main(["export", "--format", format_, "--out", str(out)]) == 1
+    error = capsys.readouterr().err
+    assert "--out" in error and f"--format {format_}" in error
+    assert not out.exists()
+
+
+def _write_exr(path, channels: dict, pitch_m: float = 32e-6):
+    import OpenEXR
+
+    OpenEXR.File({"pixel_pitch_m": pitch_m}, channels).write(str(path))
+    return path
+
+
+def test_fabricate_names_an_rgb_exr_given_as_height_map(tmp_path, capsys):
+    plane = np.zeros((64, 64), np.float32)
+    rgb = _write_exr(tmp_path / "rgb.exr", {"R": plane, "G": plane, "B": plane})
+    assert main(["fabricate", str(rgb), "--profile", "simulated", "--out", str(tmp_path / "f")]) == 1
+    error = capsys.readouterr().err
+    assert str(rgb) in error and "single-channel" in error
+
+
+@pytest.mark.parametrize("command", ["fabricate", "psf"])
+def test_a_nan_height_map_is_named(command, tmp_path, capsys):
+    heights = np.zeros((64, 64), np.float32)
+    heights[3, 4] = np.nan
+    nan_map = _write_exr(tmp_path / "nan.exr", {"height_m": heights})
+    argv = {"fabricate": ["fabricate", str(nan_map)], "psf": ["psf", "--doe", str(nan_map), "--psf-size", "15"]}
+    assert main([*argv[command], "--profile", "simulated", "--out", str(tmp_path / "o")]) == 1
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and str(nan_map) in error and "NaN" in error
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("option", [["--checkpoint", "trunc.pt"], ["--no-gate"]])
+def test_destreak_by_fit_refuses_the_network_options(option, tmp_path, capsys):
+    plane = np.full((64, 64), 0.5, np.float32)
+    frame = _write_exr(tmp_path / "frame.exr", {"R": plane, "G": plane, "B": plane})
+    assert main([str(word) for word in ["destreak", frame, *option, "--out", tmp_path / "d"]]) == 1
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and option[0] in error and "--method network" in error
+    assert not (tmp_path / "d").exists()
