@@ -66,7 +66,19 @@ class _Source:
 
     def placement(self, size: int):
         """(row offset, column offset, fraction y, fraction x): model pixel (u, v) is window sample
-        (u + row offset, v + column offset)."""
+        (u + row offset, v + column offset).
+
+        Raises InputError when the position (px) has left the range where the window holds the whole
+        (size + 1)^2 shifted model (or is not finite): the data then do not look like one point source there.
+        """
+        window = self.window
+        width = window.rate.shape[0]
+        low_y, low_x = window.top + size // 2, window.left + size // 2
+        high_y, high_x = low_y + width - size, low_x + width - size
+        if not (low_y <= self.y_px < high_y and low_x <= self.x_px < high_x):
+            raise InputError(f"no usable point source: the fit moved the source found at (y {window.y_px:.0f}, "
+                             f"x {window.x_px:.0f}) px out of its window - not a point source (an extended "
+                             "or overlapping object?)")
         row, fraction_y = split_position(self.y_px)
         column, fraction_x = split_position(self.x_px)
         return row - size // 2 - self.window.top, column - size // 2 - self.window.left, fraction_y, fraction_x
@@ -121,12 +133,14 @@ def _gradient_operator(size: int) -> scipy.sparse.csr_matrix:
 
 
 def _smoothness_weights(gradient: scipy.sparse.csr_matrix, information: np.ndarray) -> np.ndarray:
-    """Per difference: SMOOTHNESS x the smaller data weight of its two pixels, or the larger where one
-    pixel has no data (so unsampled pixels follow their neighbours and sampled ones follow the data)."""
+    """Per difference: SMOOTHNESS x the smaller data weight of its two pixels, the larger where one
+    pixel has no data, and the largest of all where neither has (so unsampled pixels follow their neighbours
+    and sampled ones follow the data). Every difference then has a positive weight, which links all pixels to
+    the sampled ones: the normal matrix is never singular, however few samples there are."""
     pairs = np.abs(gradient).multiply(information[None, :]).tocsr()
     low = np.array([row.data.min() if row.nnz else 0.0 for row in pairs])
     high = np.asarray(pairs.max(axis=1).todense()).ravel()
-    return SMOOTHNESS * np.where(low > 0, low, high)
+    return SMOOTHNESS * np.where(low > 0, low, np.where(high > 0, high, information.max()))
 
 
 def _solve_psf(sources: list[_Source], size: int, gradient: scipy.sparse.csr_matrix) -> np.ndarray:
