@@ -14,6 +14,7 @@ from hdrcam.capture.manifest import sha256_of, software_versions
 from hdrcam.io.atomic import atomic_paths, write_text_atomic
 from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
+from hdrcam.optics.psf_file import PSF_UNITS
 from hdrcam.preview import log_psf_rgb, radial_profile_plot, side_by_side
 from hdrcam.profiles import Profile
 
@@ -70,7 +71,7 @@ def write_record(folder: Path, calibration: PsfCalibration, profile: Profile, co
     with atomic_paths(paths, overwrite=overwrite) as (exr, record, preview):  # all three, or none
         write_exr(exr, psf.transpose(1, 2, 0).astype(np.float32),
                   attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m, "colour": "camera RGB",
-                              "units": "unit sum per channel", "record": RECORD_FORMAT}, overwrite=True)
+                              "units": PSF_UNITS, "record": RECORD_FORMAT}, overwrite=True)
         write_text_atomic(record, json.dumps(document, indent=1) + "\n", overwrite=True)
         write_png(preview, side_by_side(panels + [radial_profile_plot(psf)]), overwrite=True)
     return paths

@@ -10,13 +10,21 @@ from hdrcam.errors import InputError
 from hdrcam.io.exr import read_exr
 
 
+PSF_UNITS = "unit sum per channel"  # the "units" attribute of a PSF EXR hdrcam writes (calibrate psf)
+
+
 def load_psf(path: Path) -> np.ndarray:
     """A PSF EXR as 3 x k x k float32, each channel normalised to unit sum.
 
     Tiny negative values (noise left by a measured calibration, down to -1e-3 of the channel's peak) are
-    set to zero; larger ones, NaN or Inf, a non-square image or an all-zero channel are errors.
+    set to zero; larger ones, NaN or Inf, a non-square image, an all-zero channel, or an EXR whose "units"
+    attribute says it holds something else (a frame, an HDR image) are errors.
     """
-    psf = read_exr(Path(path)).rgb().transpose(2, 0, 1).astype(np.float64)
+    image = read_exr(Path(path))
+    units = image.attributes.get("units")
+    if units is not None and units != PSF_UNITS:  # hdrcam's frames and HDR images say what they hold
+        raise InputError(f"{path}: not a PSF - an image of {units!r} (a PSF EXR holds {PSF_UNITS!r} or no units)")
+    psf = image.rgb().transpose(2, 0, 1).astype(np.float64)
     if psf.shape[1] != psf.shape[2]:
         raise InputError(f"{path}: a PSF must be square, got {psf.shape[1]} x {psf.shape[2]}")
     if not np.isfinite(psf).all():

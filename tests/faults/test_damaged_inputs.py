@@ -211,6 +211,15 @@ def test_several_brackets_at_once_and_repeated_darks_are_refused_saying_why(work
                                      tmp_path / "f.exr"], capsys), 1, "two dark frames", "average repeated darks")
 
 
+def test_a_frame_given_as_the_psf_is_refused(workspace, tmp_path, capsys):
+    """A square frame (its EXR says it holds radiance) is no PSF: normalised, it would have passed as one."""
+    for argv in (["simulate", "night", "--size", "32", "32", "--psf", workspace.frame, "--out", tmp_path / "s.exr"],
+                 ["reconstruct", workspace.frame, "--psf", workspace.frame, "--out", tmp_path / "r"]):
+        assert_failed_with_one_line(run(argv, capsys), 1, str(workspace.frame), "not a PSF")
+    assert run(["simulate", "night", "--size", "32", "32", "--psf", workspace.psf, "--out", tmp_path / "s.exr"],
+               capsys)[0] == 0
+
+
 def test_an_empty_folder_to_ingest_is_one_line_on_stderr(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     status, out, lines = run(["ingest", tmp_path / "empty"], capsys)
