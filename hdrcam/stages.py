@@ -14,6 +14,7 @@ imported before a function runs (torch only for design, finetune and evaluate).
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -255,10 +256,12 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     if not partner_resumes and partner_start is None:
         return last
     new_partner_run = new_run  # unused when the partner's own run continues
-    if partner_start is not None:
-        new_partner_run = {**new_run, "preset": partner_state["preset"], "profile": partner_state["profile"],
+    if partner_start is not None:  # the main run's own options (also when this call gave none: a resume)
+        trained = json.loads((out / "config.json").read_text())
+        new_partner_run = {**new_run, **{field: trained[field] for field in PARTNER_SHARES if field in trained},
+                           "preset": partner_state["preset"], "profile": partner_state["profile"],
                            "init_checkpoint": str(partner_start),
-                           "seed": _main_seed(seed, saved_config) + 1}  # other batches than the main run's
+                           "seed": trained.get("seed", _main_seed(seed, saved_config)) + 1}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
@@ -272,6 +275,8 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
 
 
 PARTNER_RUN = "partner"  # finetune's run folder for the partner network, inside the main run's
+PARTNER_SHARES = ("psf", "data", "steps", "batch", "crop_px", "learning_rate", "checkpoint_every", "precision",
+                  "channels_last")  # the options a partner takes from its main run
 
 
 def finetuned_partner(out: str | Path) -> Path | None:
@@ -367,8 +372,12 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
 
     if device == "cuda" and not torch.cuda.is_available():
         raise InputError("--device cuda asked for, but torch sees no CUDA device")
-    checkpoint = Path(out) / "checkpoint.pt"
-    if resume and checkpoint.is_file():
+    checkpoint, claimed = Path(out) / "checkpoint.pt", Path(out) / "config.json"
+    if resume and not checkpoint.is_file() and claimed.is_file():  # stopped before its first checkpoint: it
+        saved = TrainConfig.from_dict(json.loads(claimed.read_text()))  # starts again, with its own options
+        _forget_unsaved_run(Path(out))
+        config, resume = saved, False
+    elif resume and checkpoint.is_file():
         config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
     else:
         config = TrainConfig(**new_run)

@@ -30,6 +30,14 @@ def positive_float(text: str) -> float:
     return value
 
 
+def positive_finite_float(text: str) -> float:
+    """A positive, finite number (a learning rate: 'inf' would train to non-finite weights)."""
+    value = positive_float(text)
+    if value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     return _int_at_least(text, 1)
 

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import non_negative_int, positive_float, positive_int, random_seed
+from hdrcam.cli.arguments import non_negative_int, positive_finite_float, positive_int, random_seed
 from hdrcam.recon.presets import PRESETS
 from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
 
@@ -21,7 +21,7 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
     parser.add_argument("--batch", type=positive_int, default=None, help="(default 4)")
     parser.add_argument("--crop", type=positive_int, default=None, metavar="PX",
                         help="crop size (multiple of 16, default 128)")
-    parser.add_argument("--lr", type=positive_float, default=None, help="network learning rate")
+    parser.add_argument("--lr", type=positive_finite_float, default=None, help="network learning rate")
     parser.add_argument("--seed", type=random_seed, default=None, help="(default 0)")
     parser.add_argument("--checkpoint-every", type=positive_int, default=None, metavar="K", help="(default 100)")
     parser.add_argument("--resume", action="store_true",

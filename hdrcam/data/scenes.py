@@ -13,6 +13,8 @@ spreads into it through the PSF, as it does on a sensor; targets are the centre 
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +40,10 @@ def parse_mixture(data: str) -> list[tuple[str, float]]:
             mixture.append((source, float(weight)) if source else (entry, 1.0))
         except ValueError:
             mixture.append((entry, 1.0))  # a ':' inside a path, not a weight
-    if not mixture or any(not source or not weight > 0 for source, weight in mixture):
-        raise InputError(f"--data {data!r}: expected SOURCE[:WEIGHT],... with positive weights")
+    weights = [weight for _, weight in mixture]
+    if not mixture or any(not source for source, _ in mixture) or not all(0 < weight < math.inf for weight in weights) \
+            or not math.isfinite(sum(weights)):
+        raise InputError(f"--data {data!r}: expected SOURCE[:WEIGHT],... with positive, finite weights")
     return mixture
 
 

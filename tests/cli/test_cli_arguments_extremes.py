@@ -112,3 +112,19 @@ def test_destreak_by_fit_refuses_the_network_options(option, tmp_path, capsys):
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and option[0] in error and "--method network" in error
     assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("command", ["design", "finetune"])
+def test_an_infinite_learning_rate_is_a_usage_error(command, tmp_path, capsys):
+    """--lr inf trained to non-finite weights and a model.pt that reconstruct crashed on."""
+    error = _usage_error([command, "--lr", "inf", "--out", tmp_path / "run"], capsys)
+    assert "--lr" in error and "finite" in error and not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("data", ["procedural:inf,x:1", "procedural:1e308,procedural:1e308"])
+def test_data_weights_must_be_finite_and_add_up_to_a_finite_sum(data):
+    from hdrcam.data.scenes import parse_mixture
+    from hdrcam.errors import InputError
+
+    with pytest.raises(InputError, match="finite weights"):
+        parse_mixture(data)

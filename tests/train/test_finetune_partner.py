@@ -140,3 +140,46 @@ def test_a_partner_restarted_on_resume_keeps_the_runs_seed_plus_one(tmp_path, ca
     capsys.readouterr()
     assert read_checkpoint(out / "checkpoint.pt")["config"]["seed"] == 5
     assert read_checkpoint(out / "partner" / "checkpoint.pt")["config"]["seed"] == 6
+
+
+def test_a_partner_restarted_by_a_bare_resume_takes_the_main_runs_options(tmp_path, capsys, monkeypatch):
+    """Stopped before the partner saved anything and resumed with --resume alone: the partner trains with the
+    run's own steps, batch, crop and learning rate, not finetune's defaults (200 steps of 128 px crops)."""
+    out = tmp_path / "run"
+    steps = design._train_steps
+
+    def partner_stopped_at_once(config, folder, *arguments):
+        if folder.name == "partner":
+            raise KeyboardInterrupt
+        return steps(config, folder, *arguments)
+
+    monkeypatch.setattr(design, "_train_steps", partner_stopped_at_once)
+    assert main(_finetune(out, "--lr", "1e-4")) == 130
+    monkeypatch.setattr(design, "_train_steps", steps)
+    assert main(["finetune", "--psf", str(MEASURED_PSF), "--out", str(out), "--resume"]) == 0
+    capsys.readouterr()
+    main_run = json.loads((out / "config.json").read_text())
+    partner = json.loads((out / "partner" / "config.json").read_text())
+    for field in ("steps", "batch", "crop_px", "learning_rate", "data", "psf"):
+        assert partner[field] == main_run[field], field
+    assert (partner["steps"], partner["crop_px"], partner["learning_rate"]) == (2, 64, 1e-4)
+
+
+def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_options(tmp_path, capsys,
+                                                                                       monkeypatch):
+    """Nothing saved to continue: --resume starts it again with the options it was given (it said
+    'checkpoint.pt does not exist', and a new run 'already holds a run')."""
+    out = tmp_path / "run"
+    steps = design._train_steps
+
+    def stopped_at_once(config, folder, *arguments):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "_train_steps", stopped_at_once)
+    assert main(_finetune(out, "--no-partner", "--lr", "1e-4")) == 130
+    assert not (out / "checkpoint.pt").exists()
+    monkeypatch.setattr(design, "_train_steps", steps)
+    assert main(["finetune", "--psf", str(MEASURED_PSF), "--out", str(out), "--resume", "--no-partner"]) == 0
+    capsys.readouterr()
+    saved = read_checkpoint(out / "checkpoint.pt")["config"]
+    assert (saved["steps"], saved["crop_px"], saved["learning_rate"]) == (2, 64, 1e-4)
