@@ -232,6 +232,8 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     out = Path(out)
     start = Path(checkpoint) if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
+    if Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
+        raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
     if not Path(psf).is_file():
         raise InputError(f"--psf {psf} does not exist")
     partner_run, partner_model = out / PARTNER_RUN, partner_checkpoint(out / "model.pt")

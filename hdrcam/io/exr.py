@@ -42,6 +42,7 @@ class ExrImage:
 
     channels: dict[str, np.ndarray]
     attributes: dict[str, Any]
+    source: Path | None = None  # the file read, named in errors
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -51,12 +52,13 @@ class ExrImage:
         """H x W x 3 float32 linear RGB; raises InputError when the file has no colour channels."""
         if all(name in self.channels for name in "RGB"):
             return np.stack([self.channels[name] for name in "RGB"], axis=-1)
-        raise InputError(f"EXR has channels {sorted(self.channels)}, not R, G, B")
+        raise InputError(f"{self.source or 'EXR'}: has channels {sorted(self.channels)}, not R, G, B")
 
     def single(self) -> np.ndarray:
         """H x W float32 of a single-channel file (e.g. a height map)."""
         if len(self.channels) != 1:
-            raise InputError(f"expected a single-channel EXR, found channels {sorted(self.channels)}")
+            raise InputError(f"{self.source or 'EXR'}: expected a single-channel EXR, found channels "
+                             f"{sorted(self.channels)}")
         return next(iter(self.channels.values()))
 
 
@@ -91,7 +93,7 @@ def read_exr(path: Path) -> ExrImage:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
-    return ExrImage(channels=channels, attributes=attributes)
+    return ExrImage(channels=channels, attributes=attributes, source=Path(path))
 
 
 def _check_decoded_size(path: Path, header: dict) -> None:

@@ -241,7 +241,16 @@ def _log_lines(path: Path, start: int) -> list[str]:
     """The log's lines up to step ``start`` (later ones belong to a run that was interrupted)."""
     if not path.exists():
         return []
-    return [line for line in path.read_text().splitlines() if line and json.loads(line)["step"] <= start]
+    kept = []
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        try:
+            step = json.loads(line)["step"] if line else None
+        except (json.JSONDecodeError, TypeError, KeyError):
+            raise InputError(f"{path}: line {number} is damaged (not a logged step); restore the run folder "
+                             "or start a new run") from None
+        if step is not None and step <= start:
+            kept.append(line)
+    return kept
 
 
 def checkpoint_state(model: DesignModel, config: TrainConfig, step: int) -> dict:

@@ -183,3 +183,15 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     capsys.readouterr()
     saved = read_checkpoint(out / "checkpoint.pt")["config"]
     assert (saved["steps"], saved["crop_px"], saved["learning_rate"]) == (2, 64, 1e-4)
+
+
+def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(_finetune(out, "--no-partner")) == 0
+    with open(out / "log.jsonl", "a") as log:
+        log.write('{"step": 3\n')
+    capsys.readouterr()
+    assert main(_finetune(out, "--no-partner", "--resume", "--steps", "3")) == 1
+    assert "log.jsonl: line 3 is damaged" in capsys.readouterr().err
+    assert main(["finetune", "--psf", str(MEASURED_PSF.parent), *TINY, "--out", str(tmp_path / "other")]) == 1
+    assert f"give the PSF inside it: {MEASURED_PSF}" in capsys.readouterr().err
