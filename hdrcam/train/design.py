@@ -150,6 +150,10 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     noise = torch.Generator(device=device).manual_seed(config.seed * 1000 + rank)
     start = 0
     if saved is not None:
+        if model.capture.simulator is None and not torch.allclose(model.capture.fixed.detach().cpu().float(),
+                                                                  saved["psf"], rtol=1e-5, atol=1e-8):
+            raise InputError(f"--psf {config.psf}: not the PSF {out.name} trained behind so far (the file changed "
+                             "since); resume needs the same PSF")
         model.network.load_state_dict(saved["network"], strict=False)
         if saved["doe"] is not None:
             model.capture.simulator.heightmap.load_state_dict(saved["doe"]["parameters"])

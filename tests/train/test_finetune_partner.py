@@ -195,3 +195,22 @@ def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_pat
     assert "log.jsonl: line 3 is damaged" in capsys.readouterr().err
     assert main(["finetune", "--psf", str(MEASURED_PSF.parent), *TINY, "--out", str(tmp_path / "other")]) == 1
     assert f"give the PSF inside it: {MEASURED_PSF}" in capsys.readouterr().err
+
+
+def test_a_psf_file_changed_before_a_resume_is_refused(tmp_path, capsys):
+    """The run trained behind one PSF; the same path holding another PSF is refused on --resume."""
+    import numpy as np
+
+    from hdrcam.io.exr import write_exr
+
+    psf_path = tmp_path / "psf.exr"
+    shutil.copyfile(MEASURED_PSF, psf_path)
+    out = tmp_path / "run"
+    argv = ["finetune", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]
+    assert main(argv) == 0
+    psf = load_psf(MEASURED_PSF)
+    write_exr(psf_path, np.roll(psf, 1, axis=-1).transpose(1, 2, 0), overwrite=True)
+    capsys.readouterr()
+    assert main(["finetune", "--psf", str(psf_path), "--steps", "3", "--no-partner", "--out", str(out),
+                 "--resume"]) == 1
+    assert "not the PSF run trained behind" in capsys.readouterr().err
