@@ -80,5 +80,9 @@ def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
     missing = [key for key in missing if not key.startswith("splitting.vgg.")]
     if missing or unexpected:
         raise InputError(f"{path}: network weights do not match preset {preset.name!r}")
+    tensors = [state["psf"], *(weights for weights in state["network"].values()
+                               if torch.is_tensor(weights) and weights.is_floating_point())]
+    if not all(bool(torch.isfinite(tensor).all()) for tensor in tensors):
+        raise InputError(f"{path}: the checkpoint holds NaN or Inf weights (its training diverged); use another")
     network.eval()
     return TrainedModel(network, state["psf"].numpy(), state["profile"], preset.name, int(state["step"]), path)

@@ -214,3 +214,17 @@ def test_a_psf_file_changed_before_a_resume_is_refused(tmp_path, capsys):
     assert main(["finetune", "--psf", str(psf_path), "--steps", "3", "--no-partner", "--out", str(out),
                  "--resume"]) == 1
     assert "not the PSF run trained behind" in capsys.readouterr().err
+
+
+def test_a_checkpoint_with_non_finite_weights_is_refused_in_one_line(tmp_path, capsys):
+    """A diverged run's model (reconstruct crashed on it with exit 3 in a least-squares fit)."""
+    state = read_checkpoint(SHIPPED_CHECKPOINT)
+    name = next(key for key, value in state["network"].items() if value.is_floating_point())
+    state["network"][name] = state["network"][name].clone().fill_(float("nan"))
+    save_checkpoint(tmp_path / "diverged.pt", {key: value for key, value in state.items() if key != "format"})
+    frame = tmp_path / "frame.exr"
+    assert main(["simulate", "night", "--psf", "dirac", "--size", "32", "32", "--out", str(frame)]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", str(frame), "--checkpoint", str(tmp_path / "diverged.pt"), "--no-partner",
+                 "--out", str(tmp_path / "r")]) == 1
+    assert "NaN or Inf weights" in capsys.readouterr().err
