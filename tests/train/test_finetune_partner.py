@@ -122,10 +122,8 @@ def test_resume_after_an_interrupted_partner_continues_the_partner(when, straigh
     assert _distance(resumed["network"], uninterrupted["network"]) < 1e-4
 
 
-def test_a_partner_restarted_on_resume_keeps_the_runs_seed_plus_one(tmp_path, capsys, monkeypatch):
-    """Made with --seed 5 and stopped before the partner saved anything, resumed without --seed: the partner still
-    draws with seed 6 (the run's own seed + 1), not with the default's + 1."""
-    out = tmp_path / "run"
+def _stop_the_partner_at_once(monkeypatch):
+    """Interrupt (as SIGINT does) the partner's first step; returns the real step loop, to put back."""
     steps = design._train_steps
 
     def partner_stopped_at_once(config, folder, *arguments):
@@ -134,6 +132,14 @@ def test_a_partner_restarted_on_resume_keeps_the_runs_seed_plus_one(tmp_path, ca
         return steps(config, folder, *arguments)
 
     monkeypatch.setattr(design, "_train_steps", partner_stopped_at_once)
+    return steps
+
+
+def test_a_partner_restarted_on_resume_keeps_the_runs_seed_plus_one(tmp_path, capsys, monkeypatch):
+    """Made with --seed 5 and stopped before the partner saved anything, resumed without --seed: the partner still
+    draws with seed 6 (the run's own seed + 1), not with the default's + 1."""
+    out = tmp_path / "run"
+    steps = _stop_the_partner_at_once(monkeypatch)
     assert main(_finetune(out, "--seed", "5")) == 130
     monkeypatch.setattr(design, "_train_steps", steps)
     assert main(_finetune(out, "--resume")) == 0
@@ -146,14 +152,7 @@ def test_a_partner_restarted_by_a_bare_resume_takes_the_main_runs_options(tmp_pa
     """Stopped before the partner saved anything and resumed with --resume alone: the partner trains with the
     run's own steps, batch, crop and learning rate, not finetune's defaults (200 steps of 128 px crops)."""
     out = tmp_path / "run"
-    steps = design._train_steps
-
-    def partner_stopped_at_once(config, folder, *arguments):
-        if folder.name == "partner":
-            raise KeyboardInterrupt
-        return steps(config, folder, *arguments)
-
-    monkeypatch.setattr(design, "_train_steps", partner_stopped_at_once)
+    steps = _stop_the_partner_at_once(monkeypatch)
     assert main(_finetune(out, "--lr", "1e-4")) == 130
     monkeypatch.setattr(design, "_train_steps", steps)
     assert main(["finetune", "--psf", str(MEASURED_PSF), "--out", str(out), "--resume"]) == 0
