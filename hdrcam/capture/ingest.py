@@ -108,22 +108,29 @@ def ingest_folder(folder: Path, max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestR
 
 
 def _without_copies(frames: list[RawMetadata]) -> tuple[list[RawMetadata], list[str]]:
-    """``frames`` less byte-identical copies, and one line per copy. Only files of equal size, capture time and
-    exposure are hashed (a card of same-sized frames is not read whole). Of identical files the shortest name
-    (then the first by name) stays: frame-02.dng, not "frame-02 (1).dng"."""
+    """``frames`` less byte-identical copies (:func:`identical_copies`), and one line per copy."""
+    copies = identical_copies(frames)
+    report = sorted(f"duplicate: {copy.name} has the same content as {original.name} (identical sha256); left out "
+                    "of the brackets" for copy, original in copies)
+    left_out = {copy for copy, _ in copies}
+    return [frame for frame in frames if frame.path not in left_out], report
+
+
+def identical_copies(frames: list[RawMetadata]) -> list[tuple[Path, Path]]:
+    """(copy, original) for each file among ``frames`` byte-identical to another. Only files of equal size,
+    capture time and exposure are hashed (a card of same-sized frames is not read whole). Of identical files the
+    shortest name (then the first by name) is the original: frame-02.dng, not "frame-02 (1).dng"."""
     candidates: dict[tuple, list[RawMetadata]] = {}
     for frame in frames:
         candidates.setdefault((frame.path.stat().st_size, frame.timestamp, frame.exposure_s), []).append(frame)
-    copies, report = set(), []
-    for same_size in (group for group in candidates.values() if len(group) > 1):
-        originals: dict[str, RawMetadata] = {}
-        for frame in sorted(same_size, key=lambda f: (len(f.path.name), f.path.name)):
-            original = originals.setdefault(sha256_of(frame.path), frame)
-            if original is not frame:
-                copies.add(frame.path)
-                report.append(f"duplicate: {frame.path.name} has the same content as {original.path.name} "
-                              "(identical sha256); left out of the brackets")
-    return [frame for frame in frames if frame.path not in copies], sorted(report)
+    copies = []
+    for same in (group for group in candidates.values() if len(group) > 1):
+        originals: dict[str, Path] = {}
+        for path in sorted((frame.path for frame in same), key=lambda path: (len(path.name), path.name)):
+            original = originals.setdefault(sha256_of(path), path)
+            if original != path:
+                copies.append((path, original))
+    return copies
 
 
 def bracket_manifest(frames: list[RawMetadata], manifest_folder: Path, options: dict) -> Bracket:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hdrcam.capture.ingest import raw_files
+from hdrcam.capture.ingest import identical_copies, raw_files
 from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
 from hdrcam.errors import InputError
 from hdrcam.io.raw import (NotRawError, RawFrame, RawMetadata, bit_depth_class, raw_size_px, read_raw,
@@ -152,17 +152,12 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
 
 
 def _refuse_copies(frames: list[RawFrame]) -> None:
-    """InputError naming a frame that is a byte-identical copy of another of the same exposure (``frame (1).dng``
-    beside ``frame.dng``); only frames that share an exposure are hashed."""
-    by_exposure: dict[float, list[RawFrame]] = {}
-    for frame in frames:
-        by_exposure.setdefault(frame.metadata.exposure_s, []).append(frame)
-    for same in (group for group in by_exposure.values() if len(group) > 1):
-        originals: dict[str, Path] = {}
-        for path in sorted((frame.metadata.path for frame in same), key=lambda path: (len(path.name), path.name)):
-            original = originals.setdefault(sha256_of(path), path)
-            if original != path:
-                raise InputError(f"{path}: a copy of {original.name} (identical sha256); remove it from the bracket")
+    """InputError naming a frame that is a byte-identical copy of another (``frame (1).dng`` beside
+    ``frame.dng``)."""
+    copies = identical_copies([frame.metadata for frame in frames])
+    if copies:
+        copy, original = copies[0]
+        raise InputError(f"{copy}: a copy of {original.name} (identical sha256); remove it from the bracket")
 
 
 def _check_bracket_memory(paths: list[Path]) -> None:

@@ -248,9 +248,11 @@ def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: flo
     """Warn when nothing confirms a white level of 65535 (a DNG's default for 16-bit samples, whatever the
     sensor's depth) that scales the result: no frame clips (no pile-up) and even the longest frame stays below
     the top part of the black-to-white range. For a 14-bit sensor every radiance would be 4x too small."""
-    if white_dn >= UINT16_WHITE_DN and np.all(clip_tile_dn >= white_dn) \
-            and not is_in_top_part(float(longest.bayer_dn.max()), black_dn, white_dn):
-        warnings.warn(f"no frame clips and the brightest sample ({int(longest.bayer_dn.max())} DN, "
+    if white_dn < UINT16_WHITE_DN or not np.all(clip_tile_dn >= white_dn):
+        return
+    brightest_dn = int(longest.bayer_dn.max())
+    if not is_in_top_part(brightest_dn, black_dn, white_dn):
+        warnings.warn(f"no frame clips and the brightest sample ({brightest_dn} DN, "
                       f"{longest.metadata.path.name}) stays below the top half of the range to the white level "
                       f"{white_dn:g} DN: the radiance scale (full wells) assumes that white level; if the sensor "
                       "clips lower, add a frame long enough to clip")
