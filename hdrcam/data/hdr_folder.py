@@ -59,12 +59,23 @@ def hdr_files(folder: Path) -> list[Path]:
     return files
 
 
+SAFE_PEAK = 2.0 ** 64  # far above any photograph's radiance, far below float32's 3.4e38
+
+
+def within_safe_range(image: np.ndarray) -> np.ndarray:
+    """``image`` divided by its peak where the peak exceeds SAFE_PEAK, else unchanged. Training and testing scale
+    every crop by its own brightest pixels, so a photograph's absolute scale never matters to them; near float32's
+    limit, though, augmentation's colour gains would overflow to Inf."""
+    peak = float(image.max(initial=0.0))
+    return image / np.float32(peak) if peak > SAFE_PEAK else image
+
+
 class HdrFolder:
     """The images of a folder, read once and kept in memory (float32)."""
 
     def __init__(self, folder: Path):
         self.files = hdr_files(folder)
-        self.images = [read_hdr_image(path) for path in self.files]
+        self.images = [within_safe_range(read_hdr_image(path)) for path in self.files]
 
     def __len__(self) -> int:
         return len(self.images)

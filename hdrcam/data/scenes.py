@@ -29,6 +29,7 @@ from hdrcam.errors import InputError
 PROCEDURAL = "procedural"
 PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
 TEST_SEED_BASE = 1_000_000  # test scenes never share seeds with training draws
+TRAINING_DRAWS = 16  # crops drawn in a row before a training scene without light is an error
 
 
 def parse_mixture(data: str) -> list[tuple[str, float]]:
@@ -59,23 +60,42 @@ class SceneSource:
         self.probabilities = weights / weights.sum()
         self.folder = self.folders[0]
 
-    def _raw_crop(self, size_px: int, rng: np.random.Generator) -> np.ndarray:
+    def check_training_folders(self) -> None:
+        """Refuse, by name, a training photograph without light (every pixel 0 in every channel): no crop of it
+        can be saturated (checked once, before training, rather than failing at the step that draws it)."""
+        for folder in (folder for folder in self.folders if folder is not None):
+            for path, image in zip(folder.files, folder.images):
+                if not image.max(initial=0.0) > 0.0:
+                    raise InputError(f"{path}: the photograph holds no light (every pixel is 0); it cannot be "
+                                     "saturated for training - remove it from --data")
+
+    def _raw_crop(self, size_px: int, rng: np.random.Generator) -> tuple[np.ndarray, str]:
         # one source draws no choice, so single-source runs (Table 2, the shipped design) keep their random streams
         folder = self.folders[int(rng.choice(len(self.folders), p=self.probabilities))] \
             if len(self.folders) > 1 else self.folder
         if folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px)
-            image = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
+            image, origin = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31))), PROCEDURAL
         else:
-            image = white_balance_jitter(undistorted_rows(folder.images[int(rng.integers(len(folder)))], size_px),
-                                         rng)
-        return saturated_crop(image, size_px, rng)
+            index = int(rng.integers(len(folder)))
+            image = white_balance_jitter(undistorted_rows(folder.images[index], size_px), rng)
+            origin = str(folder.files[index])
+        return saturated_crop(image, size_px, rng), origin
 
     def training_scene(self, size_px: int, margin_px: int, rng: np.random.Generator) -> np.ndarray:
-        """A (size + 2 margin)^2 scene, rotated/flipped, with 1-3 % of its centre above 1."""
-        crop = rotate_flip(self._raw_crop(size_px + 2 * margin_px, rng), rng)
-        fraction = rng.uniform(*TRAIN_CLIPPED_RANGE)
-        return _scaled(crop, fraction, margin_px)
+        """A (size + 2 margin)^2 scene, rotated/flipped, with 1-3 % of its centre above 1. A crop whose centre
+        holds too little light to saturate (a dark corner of a photograph) is drawn again, up to TRAINING_DRAWS
+        times in a row; a draw that never failed is the one it was before this rule."""
+        for _ in range(TRAINING_DRAWS):
+            raw, origin = self._raw_crop(size_px + 2 * margin_px, rng)
+            crop = rotate_flip(raw, rng)
+            fraction = rng.uniform(*TRAIN_CLIPPED_RANGE)
+            try:
+                return _scaled(crop, fraction, margin_px)
+            except InputError:
+                continue
+        raise InputError(f"{origin}: {TRAINING_DRAWS} training crops of {size_px} px in a row held too little "
+                         "light to saturate 1-3 % of their pixels; remove dark photographs from --data")
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
         """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1; each named
@@ -84,7 +104,7 @@ class SceneSource:
         if self.folder is None:
             for index in range(count):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
-                scenes.append((f"night-{index:03d}", _scaled(self._raw_crop(size_px + 2 * margin_px, rng),
+                scenes.append((f"night-{index:03d}", _scaled(self._raw_crop(size_px + 2 * margin_px, rng)[0],
                                                              TEST_CLIPPED_FRACTION, margin_px)))
         else:
             stems = [path.stem for path in self.folder.files]

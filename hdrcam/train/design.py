@@ -138,9 +138,13 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         steps = config.steps
         _check_same_run(checkpoint_path, saved["config"], config)
         config = TrainConfig.from_dict(saved["config"])
-        config.steps = max(steps, config.steps)
+        if steps < config.steps:  # the learning-rate schedule decays over the run's steps: it may only grow
+            raise InputError(f"--steps {steps}: {out} is a run of {config.steps} steps; on --resume --steps may only "
+                             "grow it")
+        config.steps = steps
 
     source = SceneSource(config.data)
+    source.check_training_folders()
     model = build_model(config, vgg_weights, random_vgg).to(device)
     optimizer = torch.optim.Adam([
         {"params": [p for p in model.network.parameters() if p.requires_grad], "lr": config.learning_rate,

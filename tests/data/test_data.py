@@ -194,3 +194,34 @@ def test_test_scenes_of_files_sharing_a_stem_keep_distinct_names(tmp_path):
     _write_exr(tmp_path / "moon.exr", image)
     names = [name for name, _ in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
     assert names == ["moon", "sun.exr", "sun.hdr"]
+
+
+def test_a_training_photograph_without_light_is_refused_by_name_before_training(tmp_path):
+    _write_exr(tmp_path / "lamp.exr", np.full((64, 64, 3), 2.0, np.float32) * np.linspace(0.01, 1, 64)[:, None, None])
+    _write_exr(tmp_path / "lens-cap.exr", np.zeros((64, 64, 3), np.float32))
+    with pytest.raises(InputError, match=r"lens-cap\.exr: the photograph holds no light"):
+        SceneSource(f"procedural:1,{tmp_path}:1").check_training_folders()
+
+
+def test_dark_crops_are_drawn_again_and_a_photograph_that_is_always_dark_is_named(tmp_path):
+    half_dark = np.zeros((256, 256, 3), np.float32)
+    half_dark[:, :128] = np.random.default_rng(0).uniform(0.1, 4.0, (256, 128, 3))
+    (tmp_path / "half").mkdir()
+    _write_exr(tmp_path / "half" / "dusk.exr", half_dark)
+    source = SceneSource(tmp_path / "half")
+    for seed in range(24):  # crops drawn anywhere (one in five) land in the black half at times
+        scene = source.training_scene(48, 0, np.random.default_rng(seed))
+        assert 0.009 <= clipped_fraction(scene) <= 0.031  # 1-3 %, to within a pixel of 48^2
+    star = np.zeros((256, 256, 3), np.float32)
+    star[100:102, 100:102] = 50.0  # 4 lit pixels: no 48 px crop has 1 % of its pixels lit
+    (tmp_path / "stars").mkdir()
+    _write_exr(tmp_path / "stars" / "star.exr", star)
+    with pytest.raises(InputError, match=r"star\.exr: 16 training crops .* too little light"):
+        SceneSource(tmp_path / "stars").training_scene(48, 0, np.random.default_rng(0))
+
+
+def test_a_photograph_near_the_float32_limit_trains_finite_scenes(tmp_path):
+    image = np.broadcast_to(np.linspace(1e37, 3.3e38, 64 * 64, dtype=np.float32).reshape(64, 64, 1), (64, 64, 3))
+    _write_exr(tmp_path / "huge.exr", image)
+    scene = SceneSource(tmp_path).training_scene(32, 8, np.random.default_rng(0))
+    assert np.isfinite(scene).all() and 0.009 <= clipped_fraction(scene[8:-8, 8:-8]) <= 0.031

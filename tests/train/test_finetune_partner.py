@@ -7,6 +7,8 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
+import OpenEXR
 import pytest
 import torch
 
@@ -227,3 +229,14 @@ def test_a_checkpoint_with_non_finite_weights_is_refused_in_one_line(tmp_path, c
     assert main(["reconstruct", str(frame), "--checkpoint", str(tmp_path / "diverged.pt"), "--no-partner",
                  "--out", str(tmp_path / "r")]) == 1
     assert "NaN or Inf weights" in capsys.readouterr().err
+
+
+def test_finetune_refuses_a_black_training_photograph_by_name_before_writing_a_run(tmp_path, capsys):
+    photographs = tmp_path / "photographs"
+    photographs.mkdir()
+    OpenEXR.File({"type": OpenEXR.scanlineimage},
+                 {"RGB": np.zeros((64, 64, 3), np.float32)}).write(str(photographs / "lens-cap.exr"))
+    out = tmp_path / "run"
+    assert main(_finetune(out, "--data", str(photographs))) == 1
+    assert "lens-cap.exr: the photograph holds no light" in capsys.readouterr().err
+    assert not out.exists()

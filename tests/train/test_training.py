@@ -112,6 +112,8 @@ def test_resume_continues_exactly_where_an_interrupted_run_would_be(tmp_path):
         train(_tiny(), tmp_path / "straight", quiet=True)
     with pytest.raises(InputError, match="does not exist"):
         train(_tiny(), tmp_path / "nothing", resume=True, quiet=True)
+    with pytest.raises(InputError, match=r"--steps 3: .* is a run of 4 steps; on --resume --steps may only grow"):
+        train(_tiny(steps=3), tmp_path / "straight", resume=True, quiet=True)  # was silently trained to 4
 
 
 def test_fixed_psf_runs_train_only_the_network_and_load_back(tmp_path):
