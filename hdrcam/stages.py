@@ -125,7 +125,7 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
 def _log_frames(say: Callable[[str], None], bracket: "Bracket", folder: Path) -> None:
     for frame in bracket.frames:
         say(f"  {folder / frame.file}  {frame.exposure_label:>7} ({frame.exposure_s:g} s)  ISO {frame.iso:g}  "
-            f"f/{frame.f_number:g}")
+            f"f/{'?' if frame.f_number is None else f'{frame.f_number:g}'}")
 
 
 def fuse(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,

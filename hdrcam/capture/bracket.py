@@ -24,8 +24,8 @@ from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
 from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
 from hdrcam.capture.notches import (NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, iso_setting,
                                     nearest_shutter, notch_step)
-from hdrcam.errors import HdrcamError, InputError, Interrupted, failure_message
-from hdrcam.io.atomic import TEMPORARY_SUFFIX
+from hdrcam.errors import HdrcamError, InputError, Interrupted, OutputExistsError, failure_message
+from hdrcam.io.atomic import TEMPORARY_SUFFIX, move_without_clobbering
 from hdrcam.io.raw import read_raw
 from hdrcam.profiles import CameraSpec
 
@@ -171,13 +171,24 @@ class BracketCapture:
 
     def _list_frame_being_written(self, bracket: Bracket) -> None:
         """A frame the camera wrote just before the capture stopped, before it could be listed, is listed
-        with the settings it was shot at (and a note), so that no frame on disk is missing from the manifest."""
+        with the settings it was shot at (and a note), so that no frame on disk is missing from the manifest -
+        if it reads as RAW. One that does not (a garbled download: what stopped the capture) is renamed
+        UNREADABLE_PREFIX + its name, kept for a look but never a frame, and that exposure is shot again on
+        ``--resume``."""
         if self._shooting is None:
             return
         stem, settings = self._shooting
         listed = {frame.file for frame in bracket.frames}
         for path in sorted(self.folder.glob(f"{stem}.*")):
             if path.name in listed or path.name.startswith(".") or TEMPORARY_SUFFIX in path.name:
+                continue
+            try:
+                read_raw(path)
+            except (HdrcamError, OSError) as error:
+                kept = _set_aside(path)
+                bracket.notes.append(f"{path.name} was written as the capture stopped but does not read as RAW "
+                                     f"({failure_message(error) or error}); kept as {kept.name}, not a frame of "
+                                     "the bracket (--resume shoots that exposure again)")
                 continue
             bracket.frames.append(self._record(path, settings, dt.datetime.fromtimestamp(path.stat().st_mtime)))
             bracket.notes.append(f"{path.name} was written as the capture stopped; listed with the settings "
@@ -242,6 +253,21 @@ class BracketCapture:
         while any(self.folder.glob(f"{prefix}-{index:02d}.*")):
             index += 1
         return f"{prefix}-{index:02d}"
+
+
+UNREADABLE_PREFIX = "unreadable-"
+
+
+def _set_aside(path: Path) -> Path:
+    """Rename ``path`` to a free UNREADABLE_PREFIX name beside it (never over a file); the new path."""
+    for attempt in range(100):
+        target = path.with_name(f"{UNREADABLE_PREFIX}{f'{attempt}-' if attempt else ''}{path.name}")
+        try:
+            move_without_clobbering(path, target)
+        except OutputExistsError:
+            continue
+        return target
+    raise OutputExistsError(f"{path}: no free name to set it aside as unreadable")
 
 
 def _stop_reason(error: BaseException) -> str:

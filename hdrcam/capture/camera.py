@@ -29,7 +29,7 @@ class ExposureSettings:
     exposure_s: float  # nominal shutter time as the camera labels it
     exposure_label: str  # e.g. "1/125" or "2.5\""
     iso: float
-    f_number: float
+    f_number: float | None  # None: the lens reports no aperture (no electronic contacts)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -115,6 +115,10 @@ class Faults:
     split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
     malformed_event: bool = False  # a 4-parameter event packet at the next full press
+    damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
+    drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
+    vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
+    lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
 
 
 class _InPipe:
@@ -323,7 +327,7 @@ class EmulatedSonyA7:
         return Response.OK
 
     def _op_1001(self, request, payload):  # GetDeviceInfo
-        info = DeviceInfo(100, SONY_VENDOR_EXTENSION_ID, 100, "Sony PTP Extensions", 0,
+        info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
                           tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
                           (SONY_RAW_FORMAT,), "Sony Corporation", "ILCE-7", "3.20", f"{self.camera.seed:08d}")
         return info.pack(), Response.OK
@@ -415,6 +419,8 @@ class EmulatedSonyA7:
         timestamp = dt.datetime.now().replace(microsecond=0)
         self._image_number += 1
         image = camera.frame_bytes(bayer, settings, timestamp)
+        if self._image_number == self.faults.damaged_image:  # a transfer the body garbled: the header survives
+            image = image[:200] + bytes(len(image) - 200)
         if self.faults.whole_packet_images:  # trailing zeros after a TIFF's last IFD and strip are ignored
             image += bytes(-(len(image) + 12) % BULK_PACKET_BYTES)
         raw = (image, SONY_RAW_FORMAT, f"DSC{self._image_number:05d}.DNG")
@@ -477,13 +483,15 @@ class EmulatedSonyA7:
             PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
             PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
                                (*ISO_VALUES, ISO_AUTO), secondary),
-            PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100)),
+            *([PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100))]
+              if faults.lens_reports_aperture else []),
             PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),
             PropertyDescriptor(Property.FOCUS_MODE, DataType.UINT16, 1, 1, 2, faults.focus_mode, FORM_ENUMERATION,
                                (1, 2, 0x8004, 0x8005),
                                (1, 2, 0x8004, 0x8005) if faults.secondary_enumerations else None),
             PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, faults.exposure_mode),
-            PropertyDescriptor(Property.DRIVE_MODE, DataType.UINT16, 1, 1, 1, 1),
+            PropertyDescriptor(Property.DRIVE_MODE, DataType.UINT16 if faults.drive_mode <= 0xFFFF else DataType.UINT32,
+                               1, 1, 1, faults.drive_mode),  # newer bodies: 32 bits
             PropertyDescriptor(Property.SONY_FOCUS_FOUND, DataType.UINT8, 0, 1, 1, self._focus_found()),
             PropertyDescriptor(Property.SONY_PENDING_IMAGES, DataType.UINT16, 0, 1, 0, pending),
         ]

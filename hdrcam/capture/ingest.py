@@ -139,6 +139,6 @@ def bracket_manifest(frames: list[RawMetadata], manifest_folder: Path, options: 
     return Bracket(kind="light", camera={"backend": "ingest", "model": ordered[0].camera_model}, profile=None,
                    frames=[BracketFrame(file=os.path.relpath(f.path, manifest_folder), sha256=sha256_of(f.path),
                                         exposure_s=f.exposure_s, exposure_label=f"{f.exposure_s:g}",
-                                        iso=f.iso or 0.0, f_number=f.f_number or 0.0,
+                                        iso=f.iso or 0.0, f_number=f.f_number,
                                         timestamp=f.timestamp.isoformat() if f.timestamp else "")
                            for f in ordered], options=options)

@@ -29,7 +29,7 @@ class BracketFrame:
     exposure_s: float
     exposure_label: str
     iso: float
-    f_number: float
+    f_number: float | None  # None: not recorded (a lens without electronic contacts)
     timestamp: str  # ISO 8601
     true_exposure_s: float | None = None  # simulated cameras only
 

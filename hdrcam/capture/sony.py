@@ -29,10 +29,12 @@ knows nothing of Sony.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import importlib
 import os
 import struct
+from collections.abc import Iterator
 from pathlib import Path
 
 import usb.backend
@@ -40,12 +42,12 @@ import usb.core
 
 from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, iso_setting, nearest_shutter, shutter_from_ptp
-from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, SONY_EXPOSURE_MODE_M,
-                                      SONY_FOCUS_FOUND_VALUES, SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT,
-                                      SONY_ISO_NR_SHIFT, SONY_PENDING_IMAGE_FLAG,
-                                      SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2, SONY_RAW_FORMAT,
-                                      SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID,
-                                      Operation, Property, Response)
+from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VENDOR_EXTENSION_ID,
+                                      SINGLE_SHOT_DRIVE, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND_VALUES,
+                                      SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_ISO_NR_SHIFT, SONY_MANUFACTURER,
+                                      SONY_PENDING_IMAGE_FLAG, SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2,
+                                      SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
+                                      SONY_VENDOR_EXTENSION_ID, Operation, Property, Response)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
@@ -178,9 +180,12 @@ class SonyA7Camera:
         session = self.session
         session.open(1)
         info = session.device_info()
-        if info.vendor_extension_id != SONY_VENDOR_EXTENSION_ID:
-            raise CameraError(f"{info.manufacturer} {info.model} is not a Sony camera (vendor extension "
-                              f"0x{info.vendor_extension_id:X})")
+        sony_over_mtp_id = info.vendor_extension_id == MTP_VENDOR_EXTENSION_ID and \
+            info.manufacturer == SONY_MANUFACTURER  # libgphoto2 takes these for Sony's extensions (PTP/IP mode)
+        if info.vendor_extension_id != SONY_VENDOR_EXTENSION_ID and not sony_over_mtp_id:
+            raise CameraError(f"{info.manufacturer} {info.model} does not offer Sony's PTP extensions (vendor "
+                              f"extension 0x{info.vendor_extension_id:X}): set USB Connection to 'PC Remote' in "
+                              "the camera's menu")
         self.model = f"{info.manufacturer} {info.model}".strip()
         self.firmware = info.device_version
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
@@ -213,11 +218,17 @@ class SonyA7Camera:
         return 0
 
     def _check_ready_for_raw_brackets(self) -> None:
-        """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only."""
+        """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only, a drive mode that takes
+        other than one frame per press at the shutter time set (the body's own bracket, continuous, self-timer)."""
         mode = self.properties.get(Property.EXPOSURE_PROGRAM_MODE)
         if mode is not None and mode.current != SONY_EXPOSURE_MODE_M:
             raise CameraError(f"the camera is not in manual exposure (mode 0x{mode.current:X}): turn the mode dial "
                               "to M")
+        drive = self.properties.get(Property.DRIVE_MODE)
+        if drive is not None and drive.current & 0xFFFF != SINGLE_SHOT_DRIVE:
+            raise CameraError(f"the drive mode is {self.details()['drive_mode']}, not single shooting: set Drive "
+                              "Mode to Single Shooting (each frame must be one press at the shutter time hdrcam "
+                              "sets)")
         if self._current(Property.SONY_SHUTTER_SPEED) == 0:
             raise CameraError("the shutter is on Bulb: set the mode dial to M and a shutter time "
                               "(Bulb's hot-pixel filter flattens a PSF core)")
@@ -238,7 +249,9 @@ class SonyA7Camera:
         """Focus mode, drive mode and firmware, for the bracket manifest."""
         def named(code, names):
             descriptor = self.properties.get(code)
-            return None if descriptor is None else names.get(descriptor.current, f"0x{descriptor.current:X}")
+            if descriptor is None:
+                return None
+            return names.get(descriptor.current & 0xFFFF, f"0x{descriptor.current:X}")
 
         return {"focus_mode": named(Property.FOCUS_MODE, FOCUS_MODE_NAMES),
                 "drive_mode": named(Property.DRIVE_MODE, DRIVE_MODE_NAMES), "firmware": self.firmware}
@@ -268,7 +281,7 @@ class SonyA7Camera:
     def settings(self) -> ExposureSettings:
         notch = _notch(self._current(Property.SONY_SHUTTER_SPEED))
         iso = self._current(Property.SONY_ISO) & 0xFFFFFF
-        f_number = self._current(Property.F_NUMBER) / 100.0 if Property.F_NUMBER in self.properties else float("nan")
+        f_number = self._current(Property.F_NUMBER) / 100.0 if Property.F_NUMBER in self.properties else None
         return ExposureSettings(float(notch.nominal), notch.label, float(iso), f_number)
 
     def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
@@ -321,12 +334,11 @@ class SonyA7Camera:
         settings = self.settings()
         self._drain_stale_events()
         before_release = self._drain_pending_image()
-        self._press(Property.SONY_HALF_PRESS, _PRESS)
-        if not self.focus_is_manual:
-            self._wait_for_focus()
-        self._press(Property.SONY_FULL_PRESS, _PRESS)
-        self._press(Property.SONY_FULL_PRESS, _RELEASE)
-        self._press(Property.SONY_HALF_PRESS, _RELEASE)
+        with self._pressed(Property.SONY_HALF_PRESS):
+            if not self.focus_is_manual:
+                self._wait_for_focus()
+            with self._pressed(Property.SONY_FULL_PRESS):
+                pass
         timestamp = dt.datetime.now().replace(microsecond=0)
         flag_alone_is_ready = before_release != SONY_PENDING_IMAGE_FLAG
         self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s, flag_alone_is_ready)
@@ -353,12 +365,35 @@ class SonyA7Camera:
     def _press(self, button: int, state: int) -> None:
         self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, button, data_out=struct.pack("<H", state))
 
+    @contextlib.contextmanager
+    def _pressed(self, button: int) -> Iterator[None]:
+        """Hold ``button`` (half or full press) for the body, and release it on every way out: a failure or an
+        interrupt while it is held must not leave the body's button down (it would refocus or keep shooting).
+        A release that fails after another failure is not reported over it."""
+        self._press(button, _PRESS)
+        try:
+            yield
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self._release(button)
+            raise
+        self._release(button)
+
+    def _release(self, button: int) -> None:
+        """Release ``button``; a release whose answer was lost or interrupted is sent once more (releasing a
+        released button changes nothing, unlike a notch step) before its error is raised."""
+        try:
+            self._press(button, _RELEASE)
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self._press(button, _RELEASE)
+            raise
+
     def _wait_for_focus(self) -> None:
-        """Poll FocusFound until it turns 2; CameraError after FOCUS_TIMEOUT_S (the half press is released)."""
+        """Poll FocusFound until it turns 2; CameraError after FOCUS_TIMEOUT_S."""
         deadline = self.clock.monotonic() + FOCUS_TIMEOUT_S
         while self._current_after_refresh(Property.SONY_FOCUS_FOUND) not in SONY_FOCUS_FOUND_VALUES:
             if self.clock.monotonic() > deadline:
-                self._press(Property.SONY_HALF_PRESS, _RELEASE)
                 raise CameraError(f"the camera found no focus within {FOCUS_TIMEOUT_S:g} s of the half press: focus "
                                   "by hand and set the focus mode to MF (a calibration bracket must not refocus)")
             self.clock.sleep(FOCUS_POLL_INTERVAL_S)

@@ -200,6 +200,13 @@ def _umask() -> int:
     return mask
 
 
+def move_without_clobbering(source: Path, target: Path) -> None:
+    """Rename ``source`` to ``target`` in one folder, never over an existing file (OutputExistsError)."""
+    with interrupts_deferred():  # never both names, nor neither
+        _publish(Path(source), Path(target), overwrite=False)
+        Path(source).unlink(missing_ok=True)
+
+
 def write_bytes_atomic(path: Path, data: bytes, *, overwrite: bool = False) -> Path:
     """Write ``data`` to ``path`` atomically."""
     with atomic_path(path, overwrite=overwrite) as temporary:

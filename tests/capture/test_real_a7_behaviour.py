@@ -109,7 +109,9 @@ def test_an_empty_sdio_answer_is_asked_again_then_the_handshake_goes_on_as_libgp
 
 @pytest.mark.parametrize("faults, message", [({"exposure_mode": 2}, "mode dial.*M"),
                                              ({"image_quality": 0x03}, "JPEG only.*RAW"),
-                                             ({"iso_auto": True}, "ISO is on Auto")])
+                                             ({"iso_auto": True}, "ISO is on Auto"),
+                                             ({"drive_mode": 0x8337}, "drive mode is bracket.*Single Shooting"),
+                                             ({"drive_mode": 0x00010002}, "drive mode is continuous")])
 def test_a_body_set_up_wrongly_is_refused_before_any_shot(faults, message):
     camera, body = emulated(**faults)
     with pytest.raises(CameraError, match=message):
@@ -180,3 +182,88 @@ def test_acceptance_a_body_set_up_wrongly_exits_1_before_any_shot(monkeypatch, t
     errors = [line for line in err.splitlines() if "error" in line]
     assert status == 1 and len(errors) == 1 and message in errors[0] and "internal error" not in err
     assert body.shots == [] and not list(out.glob("frame-*"))
+
+
+# -- a session that stops half-way, and bodies that differ --------------------------------------------------------
+def test_a_failure_while_the_shutter_is_held_releases_both_buttons(tmp_path):
+    camera, body = emulated()
+    with camera:
+        transact = camera.session.transact
+        release = struct.pack("<H", 1)
+
+        def interrupted_at_the_full_release(operation, *params, data_out=None, **options):
+            if params == (Property.SONY_FULL_PRESS,) and data_out == release:
+                camera.session.transact = transact  # once
+                raise KeyboardInterrupt  # Ctrl-C before the release reaches the body
+            return transact(operation, *params, data_out=data_out, **options)
+
+        camera.session.transact = interrupted_at_the_full_release
+        with pytest.raises(KeyboardInterrupt):
+            camera.capture(tmp_path, "f")
+        assert camera.session.transact is transact  # the fault fired
+    assert body._buttons == {Property.SONY_HALF_PRESS: 1, Property.SONY_FULL_PRESS: 1}  # 1 released, 2 held
+
+
+def test_ctrl_c_during_a_download_leaves_the_camera_ready_for_the_next_run(tmp_path):
+    camera, body = emulated()
+    backend = camera._device.backend
+    reads, original = [], backend.bulk_read
+
+    def bulk_read(*arguments):
+        if body._downloading:
+            reads.append(1)
+            if len(reads) == 2:
+                raise KeyboardInterrupt  # the image is half-way through the pipe
+        return original(*arguments)
+
+    backend.bulk_read = bulk_read
+    with pytest.raises(KeyboardInterrupt), camera:
+        camera.capture(tmp_path, "first")
+    assert not body.in_pipe.transfers  # the transaction was cancelled: nothing left for the next session
+    from hdrcam.capture.sony import SonyA7Camera, find_sony_camera
+
+    with SonyA7Camera(find_sony_camera(backend), clock=body.clock, cover_lens=lambda covered: None) as again:
+        assert read_raw(again.capture(tmp_path, "second").path).bayer_dn.shape == (48, 64)
+
+
+def test_data_left_on_the_pipe_by_a_killed_run_is_reset_away_at_open_session(tmp_path):
+    camera, body = emulated()
+    body.in_pipe.queue(bytes(range(256)) * 40)  # the middle of an image another process stopped reading
+    with camera:
+        assert any("reset the device" in line for line in camera.session.log)
+        assert camera.capture(tmp_path, "f").raw.bayer_dn.shape == (48, 64)
+
+
+def test_a_sony_body_reporting_the_mtp_extension_is_taken_as_sony_and_others_are_told_to_use_pc_remote():
+    camera, _ = emulated(vendor_extension_id=0xFFFFFFFF)  # libgphoto2: MTP + "Sony Corporation" = Sony (PTP/IP)
+    with camera:
+        assert camera.model == "Sony Corporation ILCE-7"
+    camera, _ = emulated(vendor_extension_id=6)  # a body in MTP mode (Microsoft's extension)
+    with pytest.raises(CameraError, match="does not offer Sony's PTP extensions.*PC Remote"):
+        with camera:
+            pass
+
+
+def test_a_lens_without_contacts_records_no_aperture_in_strict_json(monkeypatch, tmp_path):
+    status, out, body = _capture(monkeypatch, tmp_path, Faults(lens_reports_aperture=False))
+    assert status == 0
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    manifest = json.loads((out / "bracket.json").read_text(), parse_constant=refuse)
+    assert [frame["f_number"] for frame in manifest["frames"]] == [None] * 3
+
+
+def test_a_garbled_download_is_set_aside_and_shot_again_on_resume(monkeypatch, tmp_path, capsys):
+    status, out, body = _capture(monkeypatch, tmp_path, Faults(damaged_image=2))
+    assert status == 1 and "internal error" not in capsys.readouterr().err
+    manifest = json.loads((out / "bracket.json").read_text())
+    assert manifest["status"] == "incomplete" and [f["file"] for f in manifest["frames"]] == ["frame-00.dng"]
+    assert (out / "unreadable-frame-01.dng").is_file() and not (out / "frame-01.dng").exists()
+    assert any("does not read as RAW" in note and "unreadable-frame-01.dng" in note for note in manifest["notes"])
+    status, out, body = _capture(monkeypatch, tmp_path, Faults(), "--resume")
+    manifest = json.loads((out / "bracket.json").read_text())
+    assert status == 0 and manifest["status"] == "complete" and len(manifest["frames"]) == 3
+    for frame in manifest["frames"]:
+        assert read_raw(out / frame["file"]).bayer_dn.shape == (48, 64)

@@ -94,6 +94,8 @@ class ClassRequest(IntEnum):
 
 
 SONY_VENDOR_EXTENSION_ID = 0x11
+MTP_VENDOR_EXTENSION_ID = 0xFFFFFFFF  # libgphoto2's PTP_VENDOR_MTP; with SONY_MANUFACTURER it means Sony's extensions
+SONY_MANUFACTURER = "Sony Corporation"
 SONY_USB_VENDOR_ID = 0x054C
 SONY_A7_PC_REMOTE_PRODUCT_ID = 0x094C
 SONY_IN_MEMORY_OBJECT = 0xFFFFC001
@@ -112,6 +114,7 @@ PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
 
 
 FOCUS_MODE_NAMES = {1: "MF", 2: "AF-S", 3: "AF-A", 0x8004: "AF-C", 0x8005: "DMF", 0x8006: "AF-D"}
+SINGLE_SHOT_DRIVE = 1  # 0x5013's low 16 bits: one frame per press (newer bodies add high bits: 0x00010002 continuous)
 DRIVE_MODE_NAMES = {1: "single", 2: "continuous", 0x8003: "self-timer 10 s", 0x8004: "self-timer 2 s",
                     0x8337: "bracket"}
 

@@ -7,18 +7,23 @@ error. DeviceBusy is retried with back-off. A timeout cancels
 the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) has its
 halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
 ``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
-not repeated blindly (a second notch step or button press would do something else) and raises.
+not repeated blindly (a second notch step or button press would do something else) and raises. A transaction
+stopped by anything else mid-flight (Ctrl-C or SIGTERM during a download, a malformed container) is cancelled
+too, so the camera is not left streaming a data phase into the next session. OpenSession that meets bytes of
+no container, or none in time (what a run killed mid-download leaves queued), resets the device (class request
+0x66), clears the pipes' halts and opens once more.
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
 from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp import codes
 from hdrcam.capture.ptp.codes import ContainerType, Operation, Response
-from hdrcam.capture.ptp.container import Container, command, data
+from hdrcam.capture.ptp.container import Container, ContainerError, command, data
 from hdrcam.capture.ptp.datasets import DeviceInfo, ObjectInfo
-from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport
+from hdrcam.capture.ptp.transport import Disconnected, Stalled, TransportTimeout, UsbTransport
 
 READ_ONLY_OPERATIONS = {Operation.GET_DEVICE_INFO, Operation.GET_OBJECT_INFO, Operation.GET_OBJECT,
                         Operation.GET_DEVICE_PROP_DESC, Operation.GET_DEVICE_PROP_VALUE,
@@ -94,7 +99,17 @@ class PtpSession:
     def _transaction(self, operation: int, params, data_out: bytes | None,
                      timeout_s: float) -> tuple[Container, bytes]:
         transaction_id = self._take_transaction_id(operation)
-        timeout_ms = int(timeout_s * 1000)
+        try:
+            return self._phases(operation, transaction_id, params, data_out, int(timeout_s * 1000))
+        except (TransportTimeout, Stalled, Disconnected):
+            raise  # transact() recovers from the first two; the third has no camera to tell
+        except BaseException:  # interrupted or garbled mid-flight: the camera must not go on sending its data
+            with contextlib.suppress(CameraError):
+                self._cancel_in_flight()
+            raise
+
+    def _phases(self, operation: int, transaction_id: int, params, data_out: bytes | None,
+                timeout_ms: int) -> tuple[Container, bytes]:
         self.transport.send(command(operation, transaction_id, *params), timeout_ms)
         if data_out is not None:
             self.transport.send(data(operation, transaction_id, data_out), timeout_ms)
@@ -165,7 +180,14 @@ class PtpSession:
     # -- operations ----------------------------------------------------------------------------------------
     def open(self, session_id: int = 1) -> None:
         try:
-            self.transact(Operation.OPEN_SESSION, session_id)
+            try:
+                self.transact(Operation.OPEN_SESSION, session_id)
+            except (ContainerError, ProtocolError, TransportTimeout) as error:  # another run's data still queued
+                self.log.append(f"OpenSession met {error}; reset the device and opened again")
+                self.transport.reset()
+                self.transport.clear_halts()
+                self._wait_for_idle("a device reset")
+                self.transact(Operation.OPEN_SESSION, session_id)
         except ResponseError as error:
             if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
                 raise
