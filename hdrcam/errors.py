@@ -86,6 +86,18 @@ _ADVICE = {
 }
 
 
+_USB_ADVICE = {
+    errno.EACCES: "this user may not open the camera's USB device: add a udev rule giving it access (e.g. "
+                  "SUBSYSTEM==\"usb\", ATTR{idVendor}==\"054c\", MODE=\"0666\") or join the group that owns it",
+    errno.EPERM: "this user may not open the camera's USB device: add a udev rule giving it access or join the "
+                 "group that owns it",
+    errno.EBUSY: "another program holds the camera (a file manager's gvfs-gphoto2-volume-monitor, gphoto2, a "
+                 "tethering tool): close it, then run again",
+}
+_USB_DEFAULT_ADVICE = ("check the camera's cable, power and PC-remote mode, then run again (capture bracket --resume "
+                       "continues a bracket)")
+
+
 def os_error_message(error: OSError) -> str:
     """One line for an operating-system error: the path(s) involved, what happened and what to do."""
     paths = [str(p if not isinstance(p, bytes) else p.decode("utf-8", "backslashreplace"))
@@ -93,8 +105,7 @@ def os_error_message(error: OSError) -> str:
     where = " -> ".join(paths) if paths else None
     module = type(error).__module__ or ""
     if module.startswith("usb"):  # pyusb's USBError is an OSError, usually without errno or path
-        return (f"USB: {error}; check the camera's cable, power and PC-remote mode, then run again "
-                "(capture bracket --resume continues a bracket)")
+        return f"USB: {error}; {_USB_ADVICE.get(error.errno, _USB_DEFAULT_ADVICE)}"
     advice = _ADVICE.get(error.errno)
     if advice is None:
         advice = error.strerror or str(error) or type(error).__name__

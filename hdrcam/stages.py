@@ -81,8 +81,9 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
                        ev_step=ev_step or chosen.calibration.ev_step, iso=iso, auto=auto, roi=roi,
                        target_snr=chosen.calibration.target_snr, snr_percentile=chosen.calibration.snr_percentile)
     rendered = kernel = None
+    width, height = size_px if size_px and camera != "usb" else (chosen.camera.width_px, chosen.camera.height_px)
+    plan.check_roi_fits(width, height)  # before the folder is claimed (a real body's frame: its profile's size)
     if camera != "usb":
-        width, height = size_px or (chosen.camera.width_px, chosen.camera.height_px)
         if min(width, height) < SIMULATED_MIN_SIDE_PX:
             raise InputError(f"--size {width}x{height}: LibRaw opens no RAW frame smaller than {SIMULATED_MIN_SIDE_PX} "
                              f"px on a side; use --size {max(width, SIMULATED_MIN_SIDE_PX)}x"

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
 from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
 from hdrcam.capture.notches import (NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, iso_setting,
-                                    nearest_shutter, notch_step)
+                                    nearest_shutter, notch_step, shutter_notch_within_range)
 from hdrcam.errors import HdrcamError, InputError, Interrupted, OutputExistsError, failure_message
 from hdrcam.io.atomic import TEMPORARY_SUFFIX, move_without_clobbering
 from hdrcam.io.raw import read_raw
@@ -45,13 +45,27 @@ class BracketPlan:
 
     def __post_init__(self):
         """Refuse (InputError), before anything is shot or written, a plan the camera cannot take: an ISO it does not
-        offer, a step that is no whole number of shutter notches, a fixed bracket longer than the shutter's 30 s."""
+        offer, a step that is no whole number of shutter notches, a fixed bracket longer than the shutter's 30 s, a
+        shortest exposure beyond the shutter's range, an empty region of interest."""
         if self.iso is not None:
             iso_setting(self.iso)
+        shutter_notch_within_range(self.shortest_s)
+        if self.roi is not None and (len(self.roi) != 4 or min(self.roi) < 0 or min(self.roi[2:]) < 1):
+            raise InputError(f"--roi {','.join(map(str, self.roi))}: expected X,Y,WIDTH,HEIGHT in pixels, X and Y "
+                             "0 or more, WIDTH and HEIGHT 1 or more")
         if self.auto:
             notch_step(self.ev_step)
         else:
             bracket_notches(self.shortest_s, self.stops, self.ev_step)
+
+    def check_roi_fits(self, width_px: int, height_px: int) -> None:
+        """InputError unless the region of interest lies inside a ``width_px`` x ``height_px`` frame."""
+        if self.roi is None:
+            return
+        x, y, width, height = self.roi
+        if x + width > width_px or y + height > height_px:
+            raise InputError(f"--roi {x},{y},{width},{height} reaches past the {width_px} x {height_px} px frame "
+                             f"(to column {x + width}, row {y + height})")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,10 +77,9 @@ class FrameStatistics:
 def frame_statistics(bayer_dn: np.ndarray, camera: CameraSpec, iso: float, plan: BracketPlan) -> FrameStatistics:
     """Clipped samples and the SNR (shot + read noise) at the plan's percentile, inside the ROI."""
     if plan.roi is not None:
+        plan.check_roi_fits(bayer_dn.shape[1], bayer_dn.shape[0])  # the frame the camera sent, not the profile's
         x, y, width, height = plan.roi
         bayer_dn = bayer_dn[y:y + height, x:x + width]
-        if bayer_dn.size == 0:
-            raise HdrcamError(f"the region of interest {plan.roi} is outside the {camera.width_px} px frame")
     signal_range = camera.white_level_dn - camera.black_level_dn
     clipped = int(np.count_nonzero(bayer_dn >= camera.white_level_dn - CLIP_MARGIN * signal_range))
     electrons_per_dn = camera.full_well_e / signal_range / (iso / 100.0)

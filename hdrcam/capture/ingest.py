@@ -18,6 +18,7 @@ import os
 from pathlib import Path
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
+from hdrcam.capture.notches import exposure_label
 from hdrcam.errors import InputError
 from hdrcam.io.raw import RawMetadata, bit_depth_class, read_raw_metadata, sensor_fingerprint
 
@@ -84,8 +85,8 @@ def _close(current: list[RawMetadata], group: list[RawMetadata], brackets: list,
                      and not _too_late(*sorted((frame, other), key=_taken), max_gap_s)), None)
         reason = (f"same exposure as {twin.path.name}, and a bracket needs distinct exposures" if twin
                   else f"no other frame with these settings within {max_gap_s:g} s")
-        report.append(f"not in a bracket: {frame.path.name} (ISO {frame.iso or '?'}, f/{frame.f_number or '?'}, "
-                      f"{frame.exposure_s:g} s): {reason}")
+        report.append(f"not in a bracket: {frame.path.name} ({settings_text(frame)}, "
+                      f"{exposure_label(frame.exposure_s)}): {reason}")
 
 
 def _taken(frame: RawMetadata) -> tuple:
@@ -133,12 +134,17 @@ def identical_copies(frames: list[RawMetadata]) -> list[tuple[Path, Path]]:
     return copies
 
 
+def settings_text(frame: RawMetadata) -> str:
+    """'ISO 3200, f/2.8' ('?' for what the file does not record)."""
+    return f"ISO {f'{frame.iso:g}' if frame.iso else '?'}, f/{f'{frame.f_number:g}' if frame.f_number else '?'}"
+
+
 def bracket_manifest(frames: list[RawMetadata], manifest_folder: Path, options: dict) -> Bracket:
     """A manifest for ingested frames; file names relative to ``manifest_folder``."""
     ordered = sorted(frames, key=lambda f: f.exposure_s)
     return Bracket(kind="light", camera={"backend": "ingest", "model": ordered[0].camera_model}, profile=None,
                    frames=[BracketFrame(file=os.path.relpath(f.path, manifest_folder), sha256=sha256_of(f.path),
-                                        exposure_s=f.exposure_s, exposure_label=f"{f.exposure_s:g}",
+                                        exposure_s=f.exposure_s, exposure_label=exposure_label(f.exposure_s),
                                         iso=f.iso or 0.0, f_number=f.f_number,
                                         timestamp=f.timestamp.isoformat() if f.timestamp else "")
                            for f in ordered], options=options)

@@ -11,6 +11,7 @@ import dataclasses
 import datetime as dt
 import hashlib
 import json
+import math
 import platform
 from pathlib import Path
 
@@ -76,10 +77,38 @@ def load_bracket(path: Path) -> Bracket:
     try:
         frames = [BracketFrame(**frame) for frame in document.pop("frames")]
         bracket = Bracket(frames=frames, **document)
-    except (TypeError, KeyError) as error:
+        _check_types(bracket)
+    except (TypeError, KeyError, ValueError) as error:
         raise InputError(f"{path}: malformed bracket manifest ({error})") from None
     bracket.folder = path.parent
     return bracket
+
+
+def _check_types(bracket: Bracket) -> None:
+    """TypeError or ValueError naming the first field that does not hold what the manifest format says."""
+    def number(value, name: str, *, positive: bool = False, optional: bool = False) -> None:
+        if optional and (value is None or (isinstance(value, float) and math.isnan(value))):
+            return  # not recorded (NaN: how manifests before null recorded a lens without contacts)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                or value < 0 or (positive and value == 0):
+            raise ValueError(f"{name} {json.dumps(value)} is not a {'positive' if positive else 'non-negative'} "
+                             "finite number")
+
+    if bracket.kind not in ("light", "dark") or bracket.status not in ("complete", "incomplete"):
+        raise ValueError(f"kind {bracket.kind!r} / status {bracket.status!r}: expected light or dark / complete "
+                         "or incomplete")
+    for name, value, kind in (("camera", bracket.camera, dict), ("options", bracket.options, dict),
+                              ("notes", bracket.notes, list)):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} is not a JSON {'object' if kind is dict else 'array'}")
+    for frame in bracket.frames:
+        for name in ("file", "sha256", "exposure_label", "timestamp"):
+            if not isinstance(getattr(frame, name), str):
+                raise TypeError(f"frame {name} {json.dumps(getattr(frame, name))} is not a string")
+        number(frame.exposure_s, "frame exposure_s", positive=True)
+        number(frame.iso, "frame iso")
+        number(frame.f_number, "frame f_number", optional=True)
+        number(frame.true_exposure_s, "frame true_exposure_s", positive=True, optional=True)
 
 
 def sha256_of(path: Path) -> str:

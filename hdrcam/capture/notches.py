@@ -52,6 +52,14 @@ SHUTTER_NOTCHES = _build_notches()
 NOTCHES_PER_EV = 3
 
 
+def exposure_label(exposure_s: float) -> str:
+    """How cameras label ``exposure_s`` seconds: '1/640' below 0.35 s where 1 / exposure is a whole number (to 0.5 %),
+    else seconds with the seconds mark ('2.5"'), as the A7's notches are labelled."""
+    if exposure_s < 0.35 and abs(1 / exposure_s - round(1 / exposure_s)) <= 0.005 / exposure_s:
+        return f"1/{round(1 / exposure_s)}"
+    return f"{exposure_s:.4g}\""
+
+
 def shutter_from_ptp(value: int) -> ShutterNotch:
     """The notch of a 0xD20D value, read as the fraction numerator / denominator (libgphoto2's reading: 300/10
     and 30/1 are both 30 s); ValueError for Bulb (0) or a time that is no notch."""
@@ -70,6 +78,19 @@ def nearest_shutter(exposure_s: float) -> ShutterNotch:
     if not exposure_s > 0:
         raise ValueError(f"exposure must be positive, got {exposure_s}")
     return min(SHUTTER_NOTCHES, key=lambda notch: abs(math.log2(notch.true_s / exposure_s)))
+
+
+def shutter_notch_within_range(exposure_s: float) -> ShutterNotch:
+    """The notch nearest ``exposure_s`` (seconds); InputError when that is more than half a notch (1/6 EV) past the
+    shutter's shortest (1/8000) or longest (30 s) time: the camera cannot take it, and the nearest notch is not
+    what was asked for."""
+    notch = nearest_shutter(exposure_s)
+    if abs(math.log2(notch.true_s / exposure_s)) > 0.5 / NOTCHES_PER_EV + 1e-9 and notch.index in (
+            0, len(SHUTTER_NOTCHES) - 1):
+        written = f"1/{1 / exposure_s:.6g}" if exposure_s < 0.35 else f"{exposure_s:.4g}"
+        raise InputError(f"{written} s is beyond the shutter's range, {_seconds(SHUTTER_NOTCHES[-1])} to "
+                         f"{_seconds(SHUTTER_NOTCHES[0])} s")
+    return notch
 
 
 def bracket_notches(shortest_s: float, stops: int, ev_step: float) -> list[ShutterNotch]:

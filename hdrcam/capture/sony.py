@@ -125,8 +125,13 @@ class TerminalLensCover:
 
     def __call__(self, covered: bool) -> None:
         if covered != self.covered:
-            input("Cover the lens for dark frames, then press Enter " if covered else
-                  "Uncover the lens, then press Enter ")
+            try:
+                input("Cover the lens for dark frames, then press Enter " if covered else
+                      "Uncover the lens, then press Enter ")
+            except EOFError:
+                raise CameraError("dark frames need the lens covered by hand, and hdrcam asks for it on standard "
+                                  "input, which has ended (no terminal?): run the capture from a terminal, or give "
+                                  "an Enter for each prompt on standard input") from None
             self.covered = covered
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder
+from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder, settings_text
 from hdrcam.cli.arguments import positive_float
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_paths, check_outputs
@@ -37,9 +37,8 @@ def run(arguments: argparse.Namespace) -> int:
         for temporary, manifest in zip(temporaries, manifests):
             temporary.write_text(manifest.to_json(), encoding="utf-8")
     for path, frames, manifest in zip(names, result.brackets, manifests):
-        exposures = ", ".join(f"{frame.exposure_s:g}" for frame in manifest.frames)
-        print(f"{path}: {len(frames)} frames, ISO {frames[0].iso or '?'}, f/{frames[0].f_number or '?'}, "
-              f"exposures {exposures} s")
+        exposures = ", ".join(frame.exposure_label for frame in manifest.frames)
+        print(f"{path}: {len(frames)} frames, {settings_text(frames[0])}, exposures {exposures}")
     for line in result.report:
         print(line)
     return 0

@@ -182,3 +182,69 @@ def test_a_resumed_capture_counts_the_frames_it_shot(tmp_path, monkeypatch, fail
     bracket, darks = hdrcam.capture_bracket(tmp_path / "b", resume=True, log=lines.append, **options)
     assert bracket.status == darks.status == "complete" and len(bracket.frames) == len(darks.frames) == 3
     assert any(line.startswith(f"{shot_on_resume} frames in ") for line in lines), lines
+
+
+@pytest.mark.parametrize("option, message", [
+    ("--roi=0,0,0,5", "--roi 0,0,0,5: expected X,Y,WIDTH,HEIGHT"),
+    ("--roi=60,40,100,100", "--roi 60,40,100,100 reaches past the 64 x 48 px frame"),
+    ("--shortest=1/10000", "1/10000 s is beyond the shutter's range, 1/8000 to 30 s"),
+    ("--shortest=40", "40 s is beyond the shutter's range")])
+def test_a_region_or_shortest_exposure_the_camera_cannot_take_is_refused_before_the_folder_is_claimed(
+        tmp_path, capsys, option, message):
+    out = tmp_path / "b"
+    status = main(["capture", "bracket", "--size", "64x48", "--psf", "dirac", "--scene", "flat:0.5", "--auto",
+                   "--stops", "1", option, "--out", str(out)])
+    assert status == 1 and message in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("shortest_s, label", [(1 / 8000, "1/8000"), (30.0, '30"'), (1 / 9000, "1/8000"),
+                                               (34.0, '30"')])
+def test_the_shutter_s_ends_are_taken_to_within_half_a_notch(shortest_s, label):
+    assert bracket_notches(shortest_s, 1, 1.0)[0].label == label
+    BracketPlan(shortest_s=shortest_s, stops=1, ev_step=1.0)
+
+
+def test_manifests_with_fields_of_the_wrong_type_are_one_line_errors_and_old_nan_apertures_load(tmp_path):
+    with small_camera("sim")[0] as camera:
+        hdrcam.capture.bracket.BracketCapture(camera, hdrcam.profiles.load_profile("simulated").camera, tmp_path,
+                                              backend="sim", profile="simulated", show_progress=False).shoot(
+            BracketPlan(shortest_s=1 / 1000, stops=1, ev_step=1.0))
+    manifest = (tmp_path / "bracket.json").read_text()
+    for field, bad in (('"exposure_s": 0.001', '"exposure_s": "abc"'), ('"exposure_s": 0.001', '"exposure_s": 0'),
+                       ('"kind": "light"', '"kind": 3'), ('"iso": 100.0', '"iso": -1')):
+        assert field in manifest
+        (tmp_path / "bracket.json").write_text(manifest.replace(field, bad))
+        with pytest.raises(InputError, match="malformed bracket manifest"):
+            load_bracket(tmp_path)
+    (tmp_path / "bracket.json").write_text(re.sub(r'"f_number": [0-9.]+', '"f_number": NaN', manifest))
+    assert load_bracket(tmp_path).frames[0].f_number != load_bracket(tmp_path).frames[0].f_number  # NaN kept
+
+
+def test_dark_frames_without_a_terminal_are_a_one_line_camera_error(monkeypatch):
+    from hdrcam.capture.camera import CameraError
+    from hdrcam.capture.sony import TerminalLensCover
+
+    def no_terminal(prompt):
+        raise EOFError
+
+    monkeypatch.setattr("builtins.input", no_terminal)
+    with pytest.raises(CameraError, match="standard input, which has ended"):
+        TerminalLensCover()(True)
+
+
+@pytest.mark.parametrize("code, advice", [(errno.EACCES, "udev rule"), (errno.EBUSY, "another program holds"),
+                                          (errno.EIO, "cable, power and PC-remote mode")])
+def test_usb_errors_get_advice_for_what_went_wrong(code, advice):
+    import usb.core
+
+    from hdrcam.errors import failure_message
+
+    assert advice in failure_message(usb.core.USBError("it failed", errno=code))
+
+
+@pytest.mark.parametrize("seconds, label", [(0.0015625, "1/640"), (1 / 8000, "1/8000"), (2.5, '2.5"'), (1 / 3, "1/3"),
+                                            (0.4, '0.4"'), (0.3, '0.3"'), (0.0013, "1/769")])
+def test_exposures_are_labelled_as_cameras_label_them(seconds, label):
+    from hdrcam.capture.notches import exposure_label
+
+    assert exposure_label(seconds) == label
