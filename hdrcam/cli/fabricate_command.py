@@ -10,10 +10,12 @@ from typing import TYPE_CHECKING
 from hdrcam import __version__
 from hdrcam.cli.arguments import add_profile_option, naming_input, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_outputs, write_text_atomic
+from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.profiles import load_profile
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from hdrcam.optics.heightmap import FixedHeightMap
 
 
@@ -37,6 +39,7 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     import numpy as np
 
+    from hdrcam.io.exr import write_exr
     from hdrcam.io.png import write_png
     from hdrcam.optics.fabrication import ideal_multilevel_efficiency, quantisation_strehl, quantise_heightmap
     from hdrcam.optics.heightmap import load_heightmap, save_heightmap
@@ -74,24 +77,31 @@ def run(arguments: argparse.Namespace) -> int:
         "quantisation_strehl_at_design_wavelength": quantisation_strehl(heights, quantised.heights_m, phase_per_height),
         "level_histogram": np.bincount(quantised.level_index.ravel(), minlength=levels).tolist(),
     }
+    quantised_psf = None
     if arguments.simulate:
-        report.update(_compare_psfs(profile, source, quantised, outputs["psf"], arguments.overwrite))
+        comparison, quantised_psf = _compare_psfs(profile, source, quantised)
+        report.update(comparison)
 
-    save_heightmap(outputs["heightmap"], quantised.heights_m, source.feature_pitch_m, overwrite=arguments.overwrite,
-                   attributes={"levels": levels, "step_m": quantised.step_m})
-    for bit, mask in enumerate(quantised.masks()):
-        write_png(outputs[f"mask{bit}"], mask.astype(np.uint8) * 255, overwrite=arguments.overwrite)
-    write_text_atomic(outputs["report_json"], json.dumps(report, indent=2) + "\n", overwrite=arguments.overwrite)
-    write_text_atomic(outputs["report_md"], _markdown(report), overwrite=arguments.overwrite)
+    with atomic_paths(outputs.values(), overwrite=arguments.overwrite) as temporaries:  # all of them, or none
+        written = dict(zip(outputs, temporaries))
+        save_heightmap(written["heightmap"], quantised.heights_m, source.feature_pitch_m, overwrite=True,
+                       attributes={"levels": levels, "step_m": quantised.step_m})
+        for bit, mask in enumerate(quantised.masks()):
+            write_png(written[f"mask{bit}"], mask.astype(np.uint8) * 255, overwrite=True)
+        written["report_json"].write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        written["report_md"].write_text(_markdown(report), encoding="utf-8")
+        if quantised_psf is not None:
+            write_exr(written["psf"], quantised_psf, attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
+                      overwrite=True)
     print(_markdown(report), end="")
     print(f"wrote {', '.join(str(p) for p in outputs.values())}")
     return 0
 
 
-def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, overwrite: bool) -> dict:
+def _compare_psfs(profile, source: FixedHeightMap, quantised) -> tuple[dict, "np.ndarray"]:
+    """The report's PSF comparison of the continuous and the quantised map, and the quantised PSF (H x W x 3)."""
     import torch
 
-    from hdrcam.io.exr import write_exr
     from hdrcam.optics.psf import OpticalSetup, PsfSimulator
 
     setup = OpticalSetup.from_profile(profile)
@@ -100,11 +110,10 @@ def _compare_psfs(profile, source: FixedHeightMap, quantised, psf_path: Path, ov
         continuous = simulator()
         stepped = simulator(torch.as_tensor(quantised.heights_m, dtype=torch.float32))
     difference = (stepped.psf - continuous.psf).abs().sum(dim=(-2, -1))
-    write_exr(psf_path, stepped.psf.numpy().transpose(1, 2, 0),
-              attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m}, overwrite=overwrite)
     return {"psf_l1_difference_rgb": difference.tolist(),
             "centre_energy_fraction_continuous_rgb": continuous.centre_energy_fraction.tolist(),
-            "centre_energy_fraction_quantised_rgb": stepped.centre_energy_fraction.tolist()}
+            "centre_energy_fraction_quantised_rgb": stepped.centre_energy_fraction.tolist()}, \
+        stepped.psf.numpy().transpose(1, 2, 0)
 
 
 def _markdown(report: dict) -> str:

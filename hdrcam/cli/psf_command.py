@@ -12,7 +12,7 @@ from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
                                   naming_input, positive_float, positive_int, random_seed)
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_outputs, write_text_atomic
+from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
 
 OUTPUT_NAMES = ("psf.exr", "heightmap.exr", "psf.png", "psf.json")
@@ -102,11 +102,12 @@ def run(arguments: argparse.Namespace) -> int:
         "seconds": round(seconds, 3), "device": str(device), "dtype": arguments.dtype,
     }
     attributes = {"pixel_pitch_m": setup.pixel_pitch_m, "hdrcam_record": json.dumps(record)}
-    write_exr(outputs[0], psf.transpose(1, 2, 0), attributes=attributes, overwrite=arguments.overwrite)
-    save_heightmap(outputs[1], heights, heightmap.feature_pitch_m, overwrite=arguments.overwrite)
-    write_png(outputs[2], side_by_side([log_psf_rgb(psf), heightmap_rgb(heights, profile.doe.h_max_m)]),
-              overwrite=arguments.overwrite)
-    write_text_atomic(outputs[3], json.dumps(record, indent=2) + "\n", overwrite=arguments.overwrite)
+    with atomic_paths(outputs, overwrite=arguments.overwrite) as (psf_file, heightmap_file, preview_file, record_file):
+        write_exr(psf_file, psf.transpose(1, 2, 0), attributes=attributes, overwrite=True)  # all four, or none
+        save_heightmap(heightmap_file, heights, heightmap.feature_pitch_m, overwrite=True)
+        write_png(preview_file, side_by_side([log_psf_rgb(psf), heightmap_rgb(heights, profile.doe.h_max_m)]),
+                  overwrite=True)
+        record_file.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     print(f"PSF {setup.psf_size_px} x {setup.psf_size_px} px in {seconds:.2f} s; energy in the "
           f"{2 * setup.energy_centre_radius_px + 1} px centre (R, G, B): {', '.join(f'{v:.4f}' for v in centre)}; "
           f"in the crop: {', '.join(f'{v:.4f}' for v in crop)}")

@@ -117,10 +117,13 @@ def test_fuse_publishes_its_exr_and_preview_together_or_neither(workspace, tmp_p
 
 
 @pytest.mark.parametrize("name, module, function", [("reconstruct", "hdrcam.preview", "confidence_preview"),
-                                                     ("calibrate", "hdrcam.calibrate.record", "radial_profile_plot")])
+                                                     ("calibrate", "hdrcam.calibrate.record", "radial_profile_plot"),
+                                                     ("psf", "hdrcam.preview", "side_by_side"),
+                                                     ("fabricate", "hdrcam.cli.fabricate_command", "_markdown")])
 def test_a_failure_at_the_last_output_leaves_none_of_the_set(name, module, function, workspace, tmp_path, capsys,
                                                             monkeypatch):
-    """reconstruct's EXR and previews of a frame, calibrate's PSF, record and preview: all, or none."""
+    """reconstruct's EXR and previews of a frame, calibrate's PSF, record and preview, psf's four files, fabricate's
+    height map, masks and reports: all, or none."""
     import errno
     import importlib
 
