@@ -22,6 +22,7 @@ import OpenEXR
 
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
+from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.limits import check_image_size
 from hdrcam.parallel import worker_threads
 
@@ -69,9 +70,10 @@ def read_exr(path: Path) -> ExrImage:
         raise InputError(f"{path}: no such file")
     data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     try:
-        with OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
-            _check_decoded_size(path, header_file.header())
-        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
+        with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
+            header = dict(header_file.header())
+        _check_decoded_size(path, header)
+        with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
             header = dict(exr_file.header())
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
                             for name, channel in exr_file.channels().items()}
@@ -94,6 +96,14 @@ def read_exr(path: Path) -> ExrImage:
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
     return ExrImage(channels=channels, attributes=attributes, source=Path(path))
+
+
+@contextlib.contextmanager
+def _openexr_quiet():
+    """OpenEXR's C library prints damaged chunks on file descriptor 2, and its Python binding a "Warning: Exception
+    raised reading pixel data" on sys.stdout; read_exr reports the failure in one line of its own."""
+    with c_stderr_silenced(), contextlib.redirect_stdout(io.StringIO()):
+        yield
 
 
 def _check_decoded_size(path: Path, header: dict) -> None:

@@ -42,7 +42,6 @@ import functools
 import logging
 import math
 import os
-import sys
 import threading
 import warnings
 from pathlib import Path
@@ -51,6 +50,7 @@ import numpy as np
 import tifffile
 
 from hdrcam.errors import InputError
+from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.dng_opcodes import shading_opcodes
 from hdrcam.limits import check_image_size
 
@@ -130,7 +130,7 @@ def raw_size_px(path: str | Path) -> tuple[int, int] | None:
 
     raw = rawpy.RawPy()
     try:
-        with _libraw_stderr_silenced(), _libraw_path(Path(path)) as libraw_path:
+        with c_stderr_silenced(), _libraw_path(Path(path)) as libraw_path:
             raw.open_file(libraw_path)
         return int(raw.sizes.raw_width), int(raw.sizes.raw_height)
     except (rawpy.LibRawUnsufficientMemoryError, rawpy.LibRawMemPoolOverflowError) as error:
@@ -191,7 +191,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise NotRawError(f"{path}: LibRaw does not open it as RAW (only {tiff.file_bytes} bytes: no RAW header)")
     raw, bayer = rawpy.RawPy(), None
     try:
-        with _libraw_stderr_silenced(), _libraw_path(path) as libraw_path:
+        with c_stderr_silenced(), _libraw_path(path) as libraw_path:
             raw.open_file(libraw_path)  # the header only: sizes are checked before LibRaw allocates the pixels
             check_image_size(str(path), int(raw.sizes.raw_height), int(raw.sizes.raw_width), RAW_BYTES_PER_PIXEL,
                              "use a machine with more memory")
@@ -351,39 +351,6 @@ def _colour_matrix(libraw_matrix: np.ndarray, tiff: "_TiffFacts") -> tuple[np.nd
 def _usable(matrix: np.ndarray | None) -> bool:
     return matrix is not None and matrix.shape == (3, 3) and bool(np.isfinite(matrix).all()) \
         and abs(float(np.linalg.det(matrix))) > _MIN_MATRIX_DETERMINANT
-
-
-_silencing = threading.Lock()  # guards the two below: file descriptor 2 is shared by every thread
-_silenced_readers = 0
-_saved_stderr_fd: int | None = None
-
-
-@contextlib.contextmanager
-def _libraw_stderr_silenced():
-    """Send file descriptor 2 to /dev/null while LibRaw runs: its C code prints its own lines (e.g.
-    "Unexpected end of file") for damaged files, which hdrcam already reports in one line of its own.
-
-    Frames are decoded on several threads at once and the descriptor is the process's: the first reader in
-    saves it, the last one out restores it (each saving and restoring its own would let a reader save the
-    silenced descriptor and restore it last, and every later error line would be lost)."""
-    global _silenced_readers, _saved_stderr_fd
-    with _silencing:
-        if _silenced_readers == 0:
-            sys.stderr.flush()
-            with open(os.devnull, "w") as null:  # opened first: a failure leaves nothing to undo
-                saved = os.dup(2)
-                os.dup2(null.fileno(), 2)
-            _saved_stderr_fd = saved
-        _silenced_readers += 1
-    try:
-        yield
-    finally:
-        with _silencing:
-            _silenced_readers -= 1
-            if _silenced_readers == 0:
-                os.dup2(_saved_stderr_fd, 2)
-                os.close(_saved_stderr_fd)
-                _saved_stderr_fd = None
 
 
 _reading_tiff_facts = threading.local()  # set while this thread's tifffile reads a RAW file's structure
