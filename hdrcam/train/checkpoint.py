@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,9 @@ def read_checkpoint(path: Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"checkpoint {path} does not exist")
+    if _is_torchscript(path):
+        raise InputError(f"{path}: a TorchScript export (hdrcam export), not an hdrcam checkpoint; give the checkpoint "
+                         "it was exported from (design or finetune's model.pt)")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # torch raises many types for damaged files
@@ -54,6 +58,15 @@ def read_checkpoint(path: Path) -> dict:
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
         raise InputError(f"{path}: not an hdrcam checkpoint (format {CHECKPOINT_FORMAT} expected)")
     return state
+
+
+def _is_torchscript(path: Path) -> bool:
+    """True for a TorchScript archive: a zip holding ARCHIVE/code/ (a checkpoint's zip holds only data.pkl and data)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return any("/code/" in name for name in archive.namelist())
+    except (zipfile.BadZipFile, OSError, ValueError):
+        return False
 
 
 @dataclasses.dataclass

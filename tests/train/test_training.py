@@ -133,6 +133,9 @@ def test_damaged_checkpoints_are_one_line_errors(tmp_path):
         read_checkpoint(tmp_path / "foreign.pt")
     with pytest.raises(InputError, match="does not exist"):
         read_checkpoint(tmp_path / "missing.pt")
+    torch.jit.save(torch.jit.script(torch.nn.Linear(2, 2)), tmp_path / "exported.pt")
+    with pytest.raises(InputError, match="exported.pt: a TorchScript export .*, not an hdrcam checkpoint"):
+        read_checkpoint(tmp_path / "exported.pt")
 
 
 def test_a_run_saved_before_the_precision_options_resumes_with_their_defaults(tmp_path):
