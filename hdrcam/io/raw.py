@@ -182,7 +182,8 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     import rawpy
 
     if not path.is_file():
-        raise InputError(f"{path}: no such RAW file")
+        raise InputError(f"{path}: a folder, not a RAW file (ingest groups a folder's RAW files into brackets)"
+                         if path.is_dir() else f"{path}: no such RAW file")
     tiff = _tiff_facts(path)
     if tiff.data_end_bytes > tiff.file_bytes:
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "

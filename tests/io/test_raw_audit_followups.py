@@ -204,3 +204,10 @@ def test_a_page_with_rows_per_strip_0_keeps_its_byte_count_and_the_dngs_other_fa
     facts = raw_module._tiff_facts(path)
     assert facts.data_end_bytes > 0 and facts.data_end_checked and facts.cfa_repeat_dim == (2, 2)
     assert np.array_equal(read_raw(path).bayer_dn, bayer)
+
+
+def test_a_folder_given_as_a_raw_file_is_named_as_a_folder(tmp_path):
+    with pytest.raises(InputError, match="a folder, not a RAW file"):
+        read_raw(tmp_path)
+    with pytest.raises(InputError, match="no such RAW file"):
+        read_raw(tmp_path / "missing.ARW")
