@@ -18,7 +18,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import compute_device
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs
 
 SHIPPED_WINDSHIELD = Path(__file__).resolve().parent.parent / "checkpoints" / "windshield-fast.pt"
 
@@ -73,10 +73,10 @@ def run(arguments: argparse.Namespace) -> int:
             clean, fit = subtract_windshield_streaks(frame)
             method = {"method": "streak fit", "angle_deg": "none" if fit.angle_deg is None else f"{fit.angle_deg:.2f}"}
             work = {"work": fit.summary()}
-        write_exr(exr_path, clean, channel_names=("R", "G", "B"),
-                  attributes={"source": str(source), "orientation": orientation, **method},
-                  overwrite=arguments.overwrite)
-        write_png(png_path, display_oriented(tonemap_rgb(clean), orientation), overwrite=arguments.overwrite)
+        with atomic_paths((exr_path, png_path), overwrite=arguments.overwrite) as (exr_temporary, png_temporary):
+            write_exr(exr_temporary, clean, channel_names=("R", "G", "B"),  # a frame's two files, or neither
+                      attributes={"source": str(source), "orientation": orientation, **method}, overwrite=True)
+            write_png(png_temporary, display_oriented(tonemap_rgb(clean), orientation), overwrite=True)
         print(json.dumps({"input": str(source), "destreaked": str(exr_path), "preview": str(png_path), **work,
                           "seconds": round(time.perf_counter() - started, 2)}))
     return 0

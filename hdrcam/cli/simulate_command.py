@@ -14,7 +14,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import positive_float, positive_int, random_seed
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.train.choices import FIXED_PSFS
 
 
@@ -77,10 +77,10 @@ def run(arguments: argparse.Namespace) -> int:
     frame = capture_scene(scene, psf, profile, arguments.seed)
     truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
     attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}
-    write_exr(arguments.out, frame, channel_names=("R", "G", "B"), attributes=attributes, overwrite=arguments.overwrite)
-    if arguments.truth:
-        write_exr(arguments.truth, truth, channel_names=("R", "G", "B"), attributes=attributes,
-                  overwrite=arguments.overwrite)
+    outputs = [(arguments.out, frame)] + ([(arguments.truth, truth)] if arguments.truth else [])
+    with atomic_paths([path for path, _ in outputs], overwrite=arguments.overwrite) as temporaries:  # both, or none
+        for temporary, (_, pixels) in zip(temporaries, outputs):
+            write_exr(temporary, pixels, channel_names=("R", "G", "B"), attributes=attributes, overwrite=True)
     print(json.dumps({"frame": str(arguments.out), "truth": str(arguments.truth) if arguments.truth else None,
                       "size": list(frame.shape[:2]), "clipped_fraction_scene": round(clipped_fraction(truth), 5),
                       "clipped_fraction_frame": round(float(np.mean(frame.max(axis=-1) >= 0.99)), 5)}))

@@ -11,7 +11,7 @@ import numpy as np
 
 from hdrcam.evaluate.metrics import HARM_DB
 from hdrcam.evaluate.scoring import Example, ScoredImage
-from hdrcam.io.atomic import write_text_atomic
+from hdrcam.io.atomic import atomic_paths
 from hdrcam.io.jpeg import write_jpeg
 from hdrcam.preview import log_average_luminance, tonemap_rgb
 
@@ -28,14 +28,15 @@ def method_means(rows: list[ScoredImage]) -> dict[str, dict[str, float]]:
     return means
 
 
-def write_metrics_csv(path: Path, rows: list[ScoredImage], *, overwrite: bool = False) -> None:
+def metrics_csv(rows: list[ScoredImage]) -> str:
+    """metrics.csv's text: one row per image and method."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["image", "method", *METRICS, "clipped_fraction"])
     for row in rows:
         writer.writerow([row.image, row.method, *(f"{row.metrics[m]:.4f}" for m in METRICS),
                          f"{row.clipped_fraction:.5f}"])
-    write_text_atomic(path, buffer.getvalue(), overwrite=overwrite)
+    return buffer.getvalue()
 
 
 def paired_gains(rows: list[ScoredImage], method: str, reference: str = "ldr") -> list[tuple[str, float]]:
@@ -99,7 +100,10 @@ def examples_figure(examples: list[Example], tile_px: int = 256) -> np.ndarray:
 
 def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], description: str, *,
                  overwrite: bool = False) -> None:
-    write_metrics_csv(out / "metrics.csv", rows, overwrite=overwrite)
-    write_text_atomic(out / "summary.md", summary_markdown(rows, description), overwrite=overwrite)
-    if examples:
-        write_jpeg(out / "examples.jpg", examples_figure(examples), overwrite=overwrite)
+    """metrics.csv, summary.md and (with examples) examples.jpg in ``out``, published together or not at all."""
+    paths = [out / "metrics.csv", out / "summary.md"] + ([out / "examples.jpg"] if examples else [])
+    with atomic_paths(paths, overwrite=overwrite) as temporaries:
+        temporaries[0].write_text(metrics_csv(rows), encoding="utf-8")
+        temporaries[1].write_text(summary_markdown(rows, description), encoding="utf-8")
+        if examples:
+            write_jpeg(temporaries[2], examples_figure(examples), overwrite=True)

@@ -119,11 +119,13 @@ def test_fuse_publishes_its_exr_and_preview_together_or_neither(workspace, tmp_p
 @pytest.mark.parametrize("name, module, function", [("reconstruct", "hdrcam.preview", "confidence_preview"),
                                                      ("calibrate", "hdrcam.calibrate.record", "radial_profile_plot"),
                                                      ("psf", "hdrcam.preview", "side_by_side"),
-                                                     ("fabricate", "hdrcam.cli.fabricate_command", "_markdown")])
+                                                     ("fabricate", "hdrcam.cli.fabricate_command", "_markdown"),
+                                                     ("destreak", "hdrcam.preview", "display_oriented"),
+                                                     ("evaluate", "hdrcam.evaluate.report", "examples_figure")])
 def test_a_failure_at_the_last_output_leaves_none_of_the_set(name, module, function, workspace, tmp_path, capsys,
                                                             monkeypatch):
     """reconstruct's EXR and previews of a frame, calibrate's PSF, record and preview, psf's four files, fabricate's
-    height map, masks and reports: all, or none."""
+    height map, masks and reports, destreak's EXR and preview, evaluate's report: all, or none."""
     import errno
     import importlib
 
@@ -134,6 +136,24 @@ def test_a_failure_at_the_last_output_leaves_none_of_the_set(name, module, funct
     out = tmp_path / "out"
     assert_failed_with_one_line(run(command_lines(workspace, out)[name], capsys), 1, "no space")
     assert not [path for path in tmp_path.rglob("*") if path.is_file()]
+
+
+def test_simulate_publishes_its_frame_and_truth_together_or_neither(workspace, tmp_path, capsys, monkeypatch):
+    import errno
+
+    import hdrcam.io.exr
+
+    written, write_exr = [], hdrcam.io.exr.write_exr
+
+    def full_at_the_truth(path, *arguments, **options):
+        written.append(path)
+        if len(written) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return write_exr(path, *arguments, **options)
+
+    monkeypatch.setattr(hdrcam.io.exr, "write_exr", full_at_the_truth)
+    assert_failed_with_one_line(run(command_lines(workspace, tmp_path / "out")["simulate"], capsys), 1, "no space")
+    assert len(written) == 2 and not [path for path in tmp_path.rglob("*") if path.is_file()]
 
 
 @pytest.mark.parametrize("argv", [
