@@ -8,7 +8,8 @@ frames with known truth; table in the README):
   weights (equal to ``cv2.cvtColor`` on integer data; checked by the tests).
 - ``edge-aware``: OpenCV's edge-aware conversion (``COLOR_Bayer*2RGB_EA``); integer data only.
 - ``menon2007``: colour-demosaicing's DDFAPD with refinement (Menon, Andriani and Calvagno 2007), float or
-  integer data; several times slower, and its import (colour-science) costs about a second.
+  integer data; several times slower, and its import (colour-science) costs about a second. Its ringing at
+  sharp edges is clipped to the range of the measured samples (no negative light, nothing above the brightest).
 
 Each sample is kept where it was measured; the output is float32 in the input's units. OpenCV and
 colour-demosaicing (and numpy) are imported on first use: the command line reads METHODS without them.
@@ -65,7 +66,11 @@ def demosaic(bayer: np.ndarray, pattern: str, method: str = DEFAULT_METHOD) -> n
             warnings.simplefilter("ignore")
             from colour_demosaicing import demosaicing_CFA_Bayer_Menon2007
 
-        return demosaicing_CFA_Bayer_Menon2007(bayer.astype(np.float32), pattern).astype(np.float32)
+        samples = bayer.astype(np.float32)
+        rgb = demosaicing_CFA_Bayer_Menon2007(samples, pattern).astype(np.float32)
+        # its refinement rings at edges (below zero beside a clipped light, above the brightest sample): an
+        # interpolated value is kept within the range of the samples measured
+        return np.clip(rgb, samples.min(initial=0.0), samples.max(initial=0.0), out=rgb)
     if integer:
         suffix = "_EA" if method == "edge-aware" else ""
         code = getattr(cv2, f"COLOR_Bayer{_OPENCV_LAYOUT[pattern]}2RGB{suffix}")

@@ -48,3 +48,12 @@ def test_float_bilinear_on_strips_is_the_whole_image(pattern, monkeypatch):
     whole = demosaic(bayer, pattern)  # one strip
     monkeypatch.setattr(demosaicing, "FLOAT_STRIP_ROWS", 3)  # strips starting on either CFA row phase
     np.testing.assert_array_equal(demosaic(bayer, pattern), whole)
+
+
+def test_menons_ringing_at_a_clipped_light_stays_within_the_measured_samples():
+    bayer = np.full((64, 64), 0.02, np.float32)
+    bayer[24:40, 24:40] = 1.0  # a clipped light with a sharp edge
+    bayer[30:34, 10:14] = 0.5
+    rgb = demosaic(bayer, "RGGB", "menon2007")
+    assert rgb.min() >= 0.0 and rgb.max() <= 1.0  # the refinement rang to below zero and above white before
+    assert np.allclose(rgb[24:40, 24:40][4:-4, 4:-4], 1.0)  # inside the light: white in every channel
