@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import read_exr
 
 HDR_SUFFIXES = (".exr", ".hdr")
@@ -19,12 +20,16 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
     A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read
     as grey, R = G = B = Y."""
     path = Path(path)
+    if path.suffix.lower() not in HDR_SUFFIXES:
+        raise InputError(f"{path}: not an HDR image ({' or '.join(HDR_SUFFIXES)} holding linear radiance); an 8 or "
+                         "16-bit PNG, JPEG or TIFF is a display image, gamma-encoded and clipped")
     if path.suffix.lower() == ".exr":
         exr = read_exr(path)
         image = exr.rgb() if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels) \
             else np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
     else:
-        image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
+            image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:
             raise InputError(f"{path}: cannot read as a Radiance HDR image")
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)

@@ -8,24 +8,29 @@
   The frame stays in the sensor's orientation, as the PSF; ``read_ldr_frame_and_orientation`` also gives the
   file's EXIF Orientation code, for previews.
 - EXR: linear RGB taken as is (1.0 = white).
-- 16-bit TIFF / PNG: linear values / 65535. 8-bit files are refused (they are gamma-encoded, not linear).
+- 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
+  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files and JPEGs are refused (gamma-encoded,
+  not linear). A file that starts like an EXR is read as one whatever its name.
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
 """
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import read_exr
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
+GAMMA_SUFFIXES = (".jpg", ".jpeg")
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
@@ -43,16 +48,24 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     if not path.is_file():
         raise InputError(f"{path} does not exist")
     suffix, orientation = path.suffix.lower(), 1
-    if suffix == ".exr":
+    if suffix == ".exr" or _starts_like_exr(path):
         rgb = read_exr(path).rgb()
+    elif suffix in GAMMA_SUFFIXES:
+        raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
+                         "16-bit TIFF/PNG")
     elif suffix in IMAGE_SUFFIXES:
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None or image.ndim != 3 or image.shape[2] < 3:
             raise InputError(f"{path}: cannot read as an RGB image")
-        if image.dtype != np.uint16:
+        if image.dtype in (np.float32, np.float64):
+            rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32)  # linear, as EXR
+        elif image.dtype == np.uint16:
+            rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
+            _warn_plateau_below_white(path, image)
+        else:
             raise InputError(f"{path}: {image.dtype} pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
                              "an EXR or a RAW file")
-        rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
     else:
         raw = read_raw(path)
         rgb, orientation = raw_relative_rgb(raw, demosaic_method), raw.metadata.orientation
@@ -65,6 +78,28 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
                          "capture (give the camera frame, not an HDR image)")
     return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
+
+
+EXR_MAGIC = b"\x76\x2f\x31\x01"
+PLATEAU_MIN_PIXELS = 16  # pixels sharing the brightest value, below white, that look like clipping
+PLATEAU_BELOW_WHITE = 0.99  # of 65535: brighter maxima count as white (reconstruct's clip level)
+
+
+def _starts_like_exr(path: Path) -> bool:
+    """True for a file that begins with OpenEXR's magic number, whatever its name."""
+    with open(path, "rb") as handle:
+        return handle.read(4) == EXR_MAGIC
+
+
+def _warn_plateau_below_white(path: Path, image: np.ndarray) -> None:
+    """Warn when a 16-bit frame's brightest value, below 65535, holds many pixels: clipping at a lower white
+    (14-bit data in a 16-bit file reaches 16383), which reconstruct does not see as clipped."""
+    brightest = int(image[..., :3].max())
+    count = int(np.count_nonzero(image[..., :3].max(axis=-1) == brightest))
+    if brightest < PLATEAU_BELOW_WHITE * 65535 and count >= PLATEAU_MIN_PIXELS:
+        warnings.warn(f"{path}: {count} pixels share the brightest value, {brightest} of 65535 - clipping below "
+                      "white? hdrcam takes 65535 as white, so they are not treated as clipped; rescale the file so "
+                      "white is 65535")
 
 
 def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:

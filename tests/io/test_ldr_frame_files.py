@@ -1,0 +1,52 @@
+"""Frames that are not RAW: which image files read_ldr_frame takes as linear, which it refuses, and what it warns."""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+
+import cv2
+import numpy as np
+import pytest
+
+from hdrcam.data.hdr_folder import read_hdr_image
+from hdrcam.errors import InputError
+from hdrcam.io.exr import write_exr
+from hdrcam.io.ldr_frame import read_ldr_frame
+
+
+def _gradient() -> np.ndarray:
+    return np.linspace(0.0, 1.0, 32 * 48 * 3, dtype=np.float32).reshape(32, 48, 3)
+
+
+def test_a_float_tiff_is_linear_as_an_exr_and_a_jpeg_is_refused_as_gamma_encoded(tmp_path):
+    frame = _gradient()
+    cv2.imwrite(str(tmp_path / "frame.tif"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    assert np.allclose(read_ldr_frame(tmp_path / "frame.tif"), frame)
+    cv2.imwrite(str(tmp_path / "frame.jpg"), (frame * 255).astype(np.uint8))
+    with pytest.raises(InputError, match="a JPEG is 8-bit and gamma-encoded"):
+        read_ldr_frame(tmp_path / "frame.jpg")
+
+
+def test_an_exr_without_its_suffix_is_read_as_an_exr(tmp_path):
+    write_exr(tmp_path / "frame.exr", _gradient())
+    shutil.copy(tmp_path / "frame.exr", tmp_path / "frame")
+    assert np.array_equal(read_ldr_frame(tmp_path / "frame"), read_ldr_frame(tmp_path / "frame.exr"))
+
+
+def test_a_16_bit_frame_clipped_below_65535_is_warned_about(tmp_path):
+    counts = (_gradient() * 16383).astype(np.uint16)  # 14-bit data in a 16-bit file
+    counts[:8, :8] = 16383  # a clipped light
+    cv2.imwrite(str(tmp_path / "fourteen.png"), counts)
+    with pytest.warns(UserWarning, match="pixels share the brightest value, 16383 of 65535"):
+        read_ldr_frame(tmp_path / "fourteen.png")
+    cv2.imwrite(str(tmp_path / "sixteen.png"), (counts.astype(np.uint32) * 4 + 3).clip(0, 65535).astype(np.uint16))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_ldr_frame(tmp_path / "sixteen.png")  # white at 65535: no warning
+
+
+def test_an_8_bit_image_is_not_taken_as_an_hdr_scene(tmp_path):
+    cv2.imwrite(str(tmp_path / "scene.png"), (_gradient() * 255).astype(np.uint8))
+    with pytest.raises(InputError, match="scene.png: not an HDR image"):
+        read_hdr_image(tmp_path / "scene.png")
