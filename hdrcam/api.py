@@ -25,6 +25,26 @@ from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
 
 FRAME_RANGE_SLACK = 0.01  # black-level noise and demosaicing overshoot just outside [0, 1] are clipped, not refused
+MIN_TILE_PX = 16  # smallest window core: the network's multiple (a 1 px core ran for minutes on 96 x 96)
+
+
+class FrameError(InputError, ValueError):
+    """A frame that is not a captured LDR frame (shape, NaN or Inf, values outside [0, 1])."""
+
+
+def unit_sum_psf(psf) -> np.ndarray:
+    """A (3, k, k) PSF as float32 with each channel summing to 1; InputError for one that is not an intensity
+    (NaN or Inf, negative values below -1e-3 of the channel's peak, an all-zero channel, another shape)."""
+    psf = np.asarray(psf, np.float64)
+    if psf.ndim != 3 or psf.shape[0] != 3 or psf.shape[1] != psf.shape[2] or psf.shape[1] == 0:
+        raise InputError(f"psf must be 3 x k x k (a channel each for R, G, B), got shape {psf.shape}")
+    if not np.isfinite(psf).all():
+        raise InputError("psf has NaN or Inf values")
+    peaks = psf.max(axis=(1, 2), keepdims=True)
+    if not (peaks > 0).all() or (psf < -1e-3 * peaks).any():
+        raise InputError("psf is not an intensity: a channel is all zero or has values below -1e-3 of its peak")
+    psf = np.clip(psf, 0.0, None)
+    return (psf / psf.sum(axis=(1, 2), keepdims=True)).astype(np.float32)
 
 
 @dataclasses.dataclass
@@ -54,12 +74,13 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
     :class:`hdrcam.train.checkpoint.TrainedModel` (default: the shipped checkpoint) or any object with
-    ``network`` and ``psf``. ``psf``: the (3, k, k) unit-sum PSF the frame was taken through (a calibration's
-    measured psf.exr; default: the model's). ``noise``: the camera's shot/read noise (default: that of the
-    model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for a model without
-    one). ``partner``: a second model trained for the same PSF - "auto" (default): the checkpoint NAME-partner.pt
-    beside the model's NAME.pt where there is one (the shipped checkpoint has one), None: the model alone, a
-    checkpoint path, or a model. With a partner both networks run (twice the network time) and only what both
+    ``network`` and ``psf``. ``psf``: the (3, k, k) PSF the frame was taken through (a calibration's measured
+    psf.exr; default: the model's), normalised here to unit sum per channel. ``noise``: the camera's shot/read
+    noise (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read
+    noise for a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the windows' largest
+    core and their context, in pixels. ``partner``: a second model trained for the same PSF - "auto" (default):
+    the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped checkpoint has
+    one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the network time) and only what both
     paint is kept (their per-pixel minimum), except on clusters whose streaks confirm one network's own
     proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three times): independently trained
     networks seldom paint the same window the frame cannot refute.
@@ -78,15 +99,20 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         from hdrcam.train.checkpoint import load_model
 
         model = load_model()
-    psf = np.asarray(model.psf if psf is None else psf, np.float32)
+    psf = model.psf if psf is None else unit_sum_psf(psf)
     frame = np.ascontiguousarray(frame, np.float32)
-    if frame.ndim != 3 or frame.shape[-1] != 3:
-        raise ValueError(f"frame must be H x W x 3, got shape {frame.shape}")
+    if frame.ndim != 3 or frame.shape[-1] != 3 or 0 in frame.shape:
+        raise FrameError(f"frame must be H x W x 3 with H, W >= 1, got shape {frame.shape}")
     if not np.isfinite(frame).all():
-        raise ValueError("frame has NaN or Inf pixels: a captured frame holds finite values in [0, 1]")
+        raise FrameError("frame has NaN or Inf pixels: a captured frame holds finite values in [0, 1]")
     if frame.min() < -FRAME_RANGE_SLACK or frame.max() > 1.0 + FRAME_RANGE_SLACK:
-        raise ValueError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
+        raise FrameError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
+    if isinstance(tile_px, bool) or not isinstance(tile_px, int) or tile_px < MIN_TILE_PX:
+        raise InputError(f"tile {tile_px!r} px: a window's core is a whole number of pixels, at least {MIN_TILE_PX} "
+                         "(smaller cores run the network almost only on their halo)")
+    if isinstance(halo_px, bool) or not isinstance(halo_px, int) or halo_px < 0:
+        raise InputError(f"halo {halo_px!r} px: a whole number of pixels, 0 or more")
     frame = np.clip(frame, 0.0, 1.0)
     if streak_fit and isinstance(partner, str) and partner == "auto":
         partner = None  # the streak fit refits one network's proposal

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -63,6 +64,9 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     from hdrcam.profiles import load_profile
 
     say = log or (lambda line: None)
+    for name, value in (("hot_pixel_fraction", hot_pixel_fraction), ("exposure_error", exposure_error)):
+        if not 0 <= value < 1:  # a fraction of the pixels; a relative error of a shutter time
+            raise InputError(f"{name} {value!r}: expected a fraction from 0 up to (not including) 1")
     chosen = load_profile(profile)
     folder = Path(out)
     lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME
@@ -77,8 +81,8 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
             if manifest.exists():
                 raise OutputExistsError(f"{manifest} exists: a capture is never overwritten; choose another --out "
                                         "(or pass --resume to continue an incomplete one)")
-    plan = BracketPlan(shortest_s=shortest_s, stops=stops or chosen.calibration.stops,
-                       ev_step=ev_step or chosen.calibration.ev_step, iso=iso, auto=auto, roi=roi,
+    plan = BracketPlan(shortest_s=shortest_s, stops=chosen.calibration.stops if stops is None else stops,
+                       ev_step=chosen.calibration.ev_step if ev_step is None else ev_step, iso=iso, auto=auto, roi=roi,
                        target_snr=chosen.calibration.target_snr, snr_percentile=chosen.calibration.snr_percentile)
     rendered = kernel = None
     width, height = size_px if size_px and camera != "usb" else (chosen.camera.width_px, chosen.camera.height_px)
@@ -129,7 +133,7 @@ def _log_frames(say: Callable[[str], None], bracket: "Bracket", folder: Path) ->
             f"f/{'?' if frame.f_number is None else f'{frame.f_number:g}'}")
 
 
-def fuse(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
+def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
          camera_rgb: bool = False, with_variance: bool = False, demosaic: str = "bilinear") -> "FusedImage":
     """Merge a RAW bracket into linear HDR (nothing is written).
 
@@ -143,12 +147,12 @@ def fuse(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: st
     from hdrcam.hdr.fuse import fuse as fuse_bracket
     from hdrcam.profiles import load_profile
 
-    return fuse_bracket([Path(source) for source in bracket], load_profile(profile).camera,
+    return fuse_bracket(_sources(bracket), load_profile(profile).camera,
                         darks=Path(darks) if darks else None, camera_rgb=camera_rgb, with_variance=with_variance,
                         demosaic_method=demosaic)
 
 
-def calibrate_psf(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
+def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
                   size_px: int | None = None, energy_fraction: float | None = None) -> "PsfCalibration":
     """Measure the PSF from a point-source (best: pinhole-array) bracket, on the Bayer data.
 
@@ -161,8 +165,14 @@ def calibrate_psf(bracket: list[str | Path], *, profile: str = DEFAULT_PROFILE, 
     from hdrcam.profiles import load_profile
 
     chosen = load_profile(profile)
-    return calibrate([Path(source) for source in bracket], chosen.camera, darks=Path(darks) if darks else None,
-                     size_px=size_px or chosen.simulation.psf_size_px, energy_fraction=energy_fraction)
+    return calibrate(_sources(bracket), chosen.camera, darks=Path(darks) if darks else None,
+                     size_px=chosen.simulation.psf_size_px if size_px is None else size_px,
+                     energy_fraction=energy_fraction)
+
+
+def _sources(bracket: "str | Path | list[str | Path]") -> list[Path]:
+    """A bracket given as one path (a folder, a bracket.json, a file) or as a list of them."""
+    return [Path(bracket)] if isinstance(bracket, (str, os.PathLike)) else [Path(source) for source in bracket]
 
 
 def design(out: str | Path, *, preset: str | None = None, profile: str | None = None, doe: str | None = None,

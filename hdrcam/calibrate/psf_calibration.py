@@ -128,6 +128,10 @@ def warn_negative_energy(fit: EffectivePsf) -> None:
 
 def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
                   energy_fraction: float | None = None) -> PsfCalibration:
+    if isinstance(size_px, bool) or not isinstance(size_px, int) or size_px < 3 or size_px % 2 == 0:
+        raise InputError(f"PSF size {size_px!r}: an odd number of pixels, 3 or more (the axis is the centre pixel)")
+    if energy_fraction is not None and not 0 < energy_fraction <= 1:
+        raise InputError(f"energy fraction {energy_fraction!r}: a fraction of the light, above 0 and at most 1")
     frames = read_bracket(sources)
     dark_frames = matching_darks(frames, darks)
     merge = merge_bayer(frames, camera)  # darks find hot pixels; the annulus takes any dark offset out

@@ -47,6 +47,8 @@ class BracketPlan:
         """Refuse (InputError), before anything is shot or written, a plan the camera cannot take: an ISO it does not
         offer, a step that is no whole number of shutter notches, a fixed bracket longer than the shutter's 30 s, a
         shortest exposure beyond the shutter's range, an empty region of interest."""
+        if isinstance(self.stops, bool) or not isinstance(self.stops, int) or self.stops < 1:
+            raise InputError(f"stops {self.stops!r}: a bracket takes a whole number of exposures, 1 or more")
         if self.iso is not None:
             iso_setting(self.iso)
         shutter_notch_within_range(self.shortest_s)

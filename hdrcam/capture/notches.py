@@ -84,6 +84,8 @@ def shutter_notch_within_range(exposure_s: float) -> ShutterNotch:
     """The notch nearest ``exposure_s`` (seconds); InputError when that is more than half a notch (1/6 EV) past the
     shutter's shortest (1/8000) or longest (30 s) time: the camera cannot take it, and the nearest notch is not
     what was asked for."""
+    if not 0 < exposure_s < math.inf:
+        raise InputError(f"exposure {exposure_s!r} s: a shutter time is a positive number of seconds")
     notch = nearest_shutter(exposure_s)
     if abs(math.log2(notch.true_s / exposure_s)) > 0.5 / NOTCHES_PER_EV + 1e-9 and notch.index in (
             0, len(SHUTTER_NOTCHES) - 1):
@@ -172,6 +174,8 @@ def iso_setting(iso: float) -> int:
     otherwise: the camera would land on another ISO than asked, and the frames would disagree with the plan."""
     if iso in ISO_VALUES:
         return int(iso)
+    if not 0 < iso < math.inf:
+        raise InputError(f"ISO {iso!r}: the camera's settings are " + ", ".join(map(str, ISO_VALUES)))
     above = [value for value in ISO_VALUES if value > iso]
     below = [value for value in ISO_VALUES if value < iso]
     nearest = " and ".join(str(value) for value in (below[-1:] + above[:1]))

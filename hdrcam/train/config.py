@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from hdrcam.errors import InputError
 from hdrcam.recon.losses import LossWeights
+from hdrcam.train.choices import TRAINABLE_DOES
 
 PRECISIONS = ("float32", "bfloat16", "float16")  # of the network's forward in training; optics stay float32
 
@@ -31,8 +33,22 @@ class TrainConfig:
     weights: LossWeights = dataclasses.field(default_factory=LossWeights)
 
     def __post_init__(self) -> None:
+        """InputError, before anything is written, for settings no run can have (the command line's parsers
+        refuse them too; the Python API reaches here directly)."""
         if self.precision not in PRECISIONS:
             raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
+        if self.doe is not None and self.doe not in TRAINABLE_DOES:
+            raise InputError(f"doe must be one of {', '.join(TRAINABLE_DOES)} (or None with a fixed psf), got "
+                             f"{self.doe!r}")
+        for name in ("steps", "batch", "crop_px", "checkpoint_every"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InputError(f"{name} must be a whole number, 1 or more, got {value!r}")
+        for name in ("learning_rate", "doe_learning_rate"):
+            if not 0 < getattr(self, name) < math.inf:
+                raise InputError(f"{name} must be a positive, finite number, got {getattr(self, name)!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 32:
+            raise InputError(f"seed must be a whole number from 0 to 2^32 - 1, got {self.seed!r}")
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

@@ -1,0 +1,84 @@
+"""The public API's inputs that the command line's parsers never pass: PSFs that are not unit-sum intensities,
+empty frames, window sizes, training settings and brackets that cannot work, a bracket given as one path."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hdrcam
+from hdrcam.errors import InputError
+from hdrcam.train.checkpoint import load_model
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model()
+
+
+def _frame() -> np.ndarray:
+    frame = np.full((64, 64, 3), 0.05, np.float32)
+    frame[28:36, 28:36] = 1.0
+    return frame
+
+
+def test_a_psf_in_counts_gives_what_its_unit_sum_gives(model):
+    unit = hdrcam.reconstruct(_frame(), model, psf=model.psf, partner=None, mirror_check=False)
+    counts = hdrcam.reconstruct(_frame(), model, psf=model.psf * 5000.0, partner=None, mirror_check=False)
+    assert np.array_equal(unit.hdr, counts.hdr)
+
+
+@pytest.mark.parametrize("psf, message", [(-1.0, "not an intensity"), (0.0, "not an intensity"),
+                                          (np.nan, "NaN or Inf"), ("2d", "3 x k x k")])
+def test_psfs_that_are_not_intensities_are_refused(model, psf, message):
+    shaped = model.psf[0] if psf == "2d" else model.psf * psf
+    with pytest.raises(InputError, match=message):
+        hdrcam.reconstruct(_frame(), model, psf=shaped, partner=None)
+
+
+@pytest.mark.parametrize("options, message", [({"tile_px": 0}, "at least 16"), ({"tile_px": 1}, "at least 16"),
+                                              ({"halo_px": -1}, "0 or more")])
+def test_window_sizes_that_cannot_work_are_refused(model, options, message):
+    with pytest.raises(InputError, match=message):
+        hdrcam.reconstruct(_frame(), model, partner=None, **options)
+
+
+def test_an_empty_frame_is_refused_as_a_frame_error_that_is_also_a_value_error(model):
+    with pytest.raises(ValueError, match="H, W >= 1"):
+        hdrcam.reconstruct(np.zeros((0, 0, 3), np.float32), model, partner=None)
+    with pytest.raises(InputError):
+        hdrcam.reconstruct(np.zeros((0, 0, 3), np.float32), model, partner=None)
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"steps": 0}, "steps must be a whole number, 1 or more"), ({"batch": 0}, "batch must be"),
+    ({"learning_rate": -1.0}, "learning_rate must be a positive, finite number"),
+    ({"learning_rate": float("nan")}, "learning_rate must be"), ({"checkpoint_every": 0}, "checkpoint_every"),
+    ({"seed": -1}, "seed must be a whole number from 0"), ({"doe": "nope"}, "doe must be one of rank1, freeform")])
+def test_training_settings_no_run_can_have_are_refused_before_anything_is_written(tmp_path, options, message):
+    with pytest.raises(InputError, match=message):
+        hdrcam.design(tmp_path / "run", **options)
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("options, message", [({"stops": 0}, "stops 0: a bracket takes"),
+                                              ({"ev_step": 0}, "ev_step must be a positive multiple"),
+                                              ({"shortest_s": float("nan")}, "a shutter time is a positive"),
+                                              ({"exposure_error": 5.0}, "exposure_error 5.0: expected a fraction"),
+                                              ({"hot_pixel_fraction": -1.0}, "hot_pixel_fraction"),
+                                              ({"iso": float("nan")}, "ISO nan: the camera's settings are")])
+def test_brackets_no_camera_can_take_are_refused_before_the_folder_is_claimed(tmp_path, options, message):
+    with pytest.raises(InputError, match=message):
+        hdrcam.capture_bracket(tmp_path / "b", camera="sim", profile="simulated", psf="dirac", size_px=(64, 48),
+                               **options)
+    assert not (tmp_path / "b").exists()
+
+
+def test_a_bracket_given_as_one_path_is_fused_as_its_list_is(tmp_path):
+    hdrcam.capture_bracket(tmp_path / "b", camera="sim", profile="simulated", psf="dirac", size_px=(64, 48),
+                           stops=2, scene="flat:0.5")
+    for bracket in (str(tmp_path / "b"), tmp_path / "b"):
+        assert np.array_equal(hdrcam.fuse(bracket, profile="simulated").rgb,
+                              hdrcam.fuse([tmp_path / "b"], profile="simulated").rgb)
+    with pytest.raises(InputError, match="PSF size 4: an odd number of pixels"):
+        hdrcam.calibrate_psf(tmp_path / "b", profile="simulated", size_px=4)
