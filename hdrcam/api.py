@@ -80,10 +80,10 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     noise for a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the windows' largest
     core and their context, in pixels. ``partner``: a second model trained for the same PSF - "auto" (default):
     the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped checkpoint has
-    one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the network time) and only what both
-    paint is kept (their per-pixel minimum), except on clusters whose streaks confirm one network's own
-    proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three times): independently trained
-    networks seldom paint the same window the frame cannot refute.
+    one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the
+    network time) and only what both paint is kept (their per-pixel minimum), except on clusters whose streaks
+    confirm one network's own proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three
+    times): independently trained networks seldom paint the same window the frame cannot refute.
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
     (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint

@@ -152,7 +152,8 @@ def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFI
                         demosaic_method=demosaic)
 
 
-def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
+def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE,
+                  darks: str | Path | None = None,
                   size_px: int | None = None, energy_fraction: float | None = None) -> "PsfCalibration":
     """Measure the PSF from a point-source (best: pinhole-array) bracket, on the Bayer data.
 
