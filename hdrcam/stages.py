@@ -415,10 +415,16 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
     the scored rows (also ``ldr`` and ``hdrcnn-blend``) and three examples (images).
     """
     from hdrcam.data.scenes import SceneSource
-    from hdrcam.evaluate.scoring import evaluate_models
+    from hdrcam.errors import InputError
+    from hdrcam.evaluate.scoring import check_test_crop, evaluate_models
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.train.checkpoint import load_model
 
+    check_test_crop(size_px)
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise InputError(f"count must be a whole number of test scenes, 1 or more, got {count!r}")
+    if checkpoints is not None and not isinstance(checkpoints, dict):
+        raise InputError("checkpoints: a dict of label -> checkpoint path (None: the shipped checkpoint)")
     models = {label: load_model(Path(path) if path else None, vgg_weights=Path(vgg_weights) if vgg_weights else None)
               for label, path in (checkpoints or {"hdrcam": None}).items()}
     source = SceneSource(data)

@@ -82,3 +82,30 @@ def test_a_bracket_given_as_one_path_is_fused_as_its_list_is(tmp_path):
                               hdrcam.fuse([tmp_path / "b"], profile="simulated").rgb)
     with pytest.raises(InputError, match="PSF size 4: an odd number of pixels"):
         hdrcam.calibrate_psf(tmp_path / "b", profile="simulated", size_px=4)
+
+
+@pytest.mark.parametrize("options, message", [({"size_px": 0}, "multiple of 16 and at least 32"),
+                                              ({"size_px": 100}, "multiple of 16"),
+                                              ({"count": 0}, "count must be a whole number"),
+                                              ({"checkpoints": ["model.pt"]}, "a dict of label")])
+def test_test_sets_that_cannot_be_scored_are_refused(options, message):
+    with pytest.raises(InputError, match=message):
+        hdrcam.evaluate_checkpoints(**options)
+
+
+def test_a_photograph_without_light_is_left_out_of_a_test_set_by_name(tmp_path):
+    from hdrcam.data.scenes import SceneSource
+    from hdrcam.io.exr import write_exr
+
+    write_exr(tmp_path / "lens-cap.exr", np.zeros((64, 64, 3), np.float32))
+    write_exr(tmp_path / "lamp.exr", np.linspace(0, 1, 64 * 64 * 3, dtype=np.float32).reshape(64, 64, 3))
+    with pytest.warns(UserWarning, match=r"lens-cap\.exr: not a test scene"):
+        scenes = SceneSource(tmp_path).test_scenes(32, 0, 1)
+    assert [name for name, _ in scenes] == ["lamp"]
+
+
+def test_a_folder_given_as_a_frame_is_named_as_a_folder(tmp_path):
+    from hdrcam.io.ldr_frame import read_ldr_frame
+
+    with pytest.raises(InputError, match="is a folder; give the frames in it"):
+        read_ldr_frame(tmp_path)

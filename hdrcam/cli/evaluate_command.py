@@ -61,15 +61,14 @@ def run(arguments: argparse.Namespace) -> int:
 
     from hdrcam.data.scenes import SceneSource
     from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
-    from hdrcam.evaluate.scoring import evaluate_models
+    from hdrcam.evaluate.scoring import check_test_crop, evaluate_models
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.limits import check_image_size
     from hdrcam.recon.tiling import FRAME_BYTES_PER_PIXEL, WINDOW_BYTES_PER_PIXEL
     from hdrcam.api import resolve_partner
     from hdrcam.train.checkpoint import load_model
 
-    if arguments.size % 16 or arguments.size < 32:
-        raise InputError(f"--size must be a multiple of 16 and at least 32, got {arguments.size}")
+    check_test_crop(arguments.size)
     check_image_size("--size", arguments.size, arguments.size, WINDOW_BYTES_PER_PIXEL + FRAME_BYTES_PER_PIXEL,
                      "use a smaller --size")
     inputs = [path for path in (*_labelled(arguments.checkpoint).values(), arguments.psf) if path is not None]

@@ -14,6 +14,7 @@ spreads into it through the PSF, as it does on a sensor; targets are the centre 
 from __future__ import annotations
 
 import math
+import warnings
 
 from pathlib import Path
 
@@ -99,7 +100,8 @@ class SceneSource:
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
         """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1; each named
-        (night-NNN, or the file's stem - its name where two files share a stem)."""
+        (night-NNN, or the file's stem - its name where two files share a stem). A photograph without light in
+        its crop is left out with a warning naming it."""
         scenes = []
         if self.folder is None:
             for index in range(count):
@@ -112,7 +114,10 @@ class SceneSource:
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
                 crop = saturated_crop(self.folder.images[index], size_px + 2 * margin_px, rng, preference=1.0)
                 name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
-                scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
+                try:
+                    scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
+                except InputError as error:  # no light: left out, as a photograph the protocol cannot scale is
+                    warnings.warn(f"{path}: not a test scene - {error}")
         return scenes
 
 

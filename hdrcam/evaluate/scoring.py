@@ -24,6 +24,7 @@ import torch
 from hdrcam.api import reconstruct, resolve_partner
 from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction
 from hdrcam.data.scenes import SceneSource
+from hdrcam.errors import InputError
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
 from hdrcam.train.checkpoint import TrainedModel
@@ -52,6 +53,12 @@ def hdrcnn_blend(ldr: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
     """(1 - alpha) LDR + alpha reconstruction, alpha = clip((max_c LDR - 0.95) / 0.05, 0, 1)."""
     alpha = np.clip((ldr.max(axis=-1, keepdims=True) - BLEND_START) / (1.0 - BLEND_START), 0.0, 1.0)
     return (1.0 - alpha) * ldr + alpha * reconstruction
+
+
+def check_test_crop(size_px: int) -> None:
+    """InputError unless ``size_px`` is a test crop the network takes: a multiple of 16, at least 32."""
+    if isinstance(size_px, bool) or not isinstance(size_px, int) or size_px % 16 or size_px < 32:
+        raise InputError(f"--size must be a multiple of 16 and at least 32, got {size_px!r}")
 
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,

@@ -46,7 +46,7 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     (its frame stays in the sensor's orientation), 1 for EXR, TIFF and PNG (taken as stored)."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path} does not exist")
+        raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
     suffix, orientation = path.suffix.lower(), 1
     if suffix == ".exr" or _starts_like_exr(path):
         rgb = read_exr(path).rgb()
