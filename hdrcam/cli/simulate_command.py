@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 from pathlib import Path
 
 from hdrcam.cli.arguments import positive_float, positive_int, random_seed
@@ -76,12 +77,17 @@ def run(arguments: argparse.Namespace) -> int:
     scene = scale_to_clipped_fraction(scene, arguments.clipped_fraction, scale_region=inner)
     frame = capture_scene(scene, psf, profile, arguments.seed)
     truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
+    reached = clipped_fraction(truth)
+    if not arguments.clipped_fraction / 2 <= reached <= 2 * arguments.clipped_fraction:
+        warnings.warn(f"{arguments.scene}: {100 * reached:.3g} % of the scene's pixels exceed white, not the "
+                      f"{100 * arguments.clipped_fraction:g} % asked (a plateau at its brightest: saturated at "
+                      "source, or uniform)")
     attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}
     outputs = [(arguments.out, frame)] + ([(arguments.truth, truth)] if arguments.truth else [])
     with atomic_paths([path for path, _ in outputs], overwrite=arguments.overwrite) as temporaries:  # both, or none
         for temporary, (_, pixels) in zip(temporaries, outputs):
             write_exr(temporary, pixels, channel_names=("R", "G", "B"), attributes=attributes, overwrite=True)
     print(json.dumps({"frame": str(arguments.out), "truth": str(arguments.truth) if arguments.truth else None,
-                      "size": list(frame.shape[:2]), "clipped_fraction_scene": round(clipped_fraction(truth), 5),
+                      "size": list(frame.shape[:2]), "clipped_fraction_scene": round(reached, 5),
                       "clipped_fraction_frame": round(float(np.mean(frame.max(axis=-1) >= 0.99)), 5)}))
     return 0
