@@ -25,6 +25,15 @@ from hdrcam.io.exr import read_exr, write_exr
 
 HEIGHT_CHANNEL = "height_m"
 PITCH_ATTRIBUTE = "pixel_pitch_m"
+# Plausible DOE feature pitches (metres): below 0.1 um (a quarter of the shortest visible wavelength) the thin
+# scalar element of paper Sec. 3 no longer holds and no lithography writes a camera-sized plate; above 1 mm a
+# "feature" spans a large part of any camera DOE (2-10 mm), diffracts by less than lambda / 1 mm (under 0.7 mrad)
+# and is a flat plate. The paper's features are 6 um, the simulated profile's 32 um; 6 um written in
+# micrometres (6) or millimetres (0.006) falls outside.
+FEATURE_PITCH_RANGE_M = (0.1e-6, 1e-3)
+# Highest plausible relief (metres): a DOE's heights are a few waves, micrometres (h_max is 1.2 um for one wave
+# of fused silica at 550 nm); 100 um is about 84 waves, still far below a height written in micrometres (0.5 um -> 0.5).
+MAX_HEIGHT_M = 100e-6
 
 
 def feature_count(aperture_m: float, feature_pitch_m: float) -> int:
@@ -123,7 +132,18 @@ def load_heightmap(path: Path, aperture_m: float, dtype: torch.dtype = torch.flo
     pitch = image.attributes.get(PITCH_ATTRIBUTE)
     if not isinstance(pitch, (int, float)) or not pitch > 0:
         raise InputError(f"{path}: height map lacks a positive '{PITCH_ATTRIBUTE}' attribute (metres)")
+    low, high = FEATURE_PITCH_RANGE_M
+    if not low <= pitch <= high:  # also refuses inf; NaN failed `pitch > 0`
+        raise InputError(f"{path}: '{PITCH_ATTRIBUTE}' {pitch:g} m is outside {low * 1e6:g} um .. {high * 1e3:g} mm, "
+                         "not a DOE feature; the attribute is the feature pitch in metres (6 um is 6e-6)")
     heights = image.single()
+    if not np.isfinite(heights).all():
+        raise InputError(f"{path}: height map has NaN or Inf values")
+    lowest, highest = float(heights.min()), float(heights.max())
+    if lowest < -1e-12 or highest > MAX_HEIGHT_M:  # a picometre below zero is rounding, as in fabrication
+        raise InputError(f"{path}: heights span {lowest:.4g} .. {highest:.4g} m, outside 0 .. {MAX_HEIGHT_M * 1e6:g} "
+                         "um; heights are metres above the lowest etch level, and a DOE's relief is micrometres "
+                         "(1.2 um is 1.2e-6, not 1.2)")
     check_covers_aperture(heights.shape, float(pitch), aperture_m, str(path))
     if heights.shape[0] != heights.shape[1]:
         raise InputError(f"{path}: height map must be square, got {heights.shape}")

@@ -16,8 +16,19 @@ are formed in float64 with the constant pistons k z and k f removed, then cast t
 
 Model "fraunhofer" evaluates the same paraxial model as a scaled Fourier transform of the pupil by chirp-z
 transforms (:mod:`hdrcam.optics.fraunhofer`): no grid fine enough for the lens phase, so the paper's 9.16 mm
-aperture at 50 mm costs a second on a CPU instead of 4608^2 FFTs; it agrees with "fresnel" to 7e-5 per pixel
-(tools/bench_fraunhofer.py).
+aperture at 50 mm costs a second on a CPU instead of 4608^2 FFTs.
+
+Accuracy. Both models integrate a pixel by summing point samples in it (the grid's ``upsample`` x ``upsample``,
+the chirp-z model's 7 x 7); for a diffraction spot about a pixel wide that sum, not the propagation, sets the
+centre pixel. At the same 3 points per pixel the chirp-z model and the A7 profile's 4608^2 Fresnel grid agree to
+9e-6 per pixel of the light through the aperture for a clear aperture and 8e-5 for the seeded rank1 map
+(``python tools/bench_fraunhofer.py --heightmap none`` or ``rank1``; 5e-5 on the trained map of
+tools/results/table2). At the defaults they differ by up to 0.024 per pixel:
+centre pixel of a clear aperture (R/G/B, of the 31 px crop; ``hdrcam psf --doe none --psf-size 31`` with and
+without ``--propagation fresnel``, pixel (15, 15) of psf.exr, float32): chirp-z 0.8145/0.8405/0.8463 in 1.2 s,
+Fresnel grid 0.8387/0.8470/0.8255 in 8.4 s, the Airy pattern integrated over the pixel (61 x 61 points)
+0.8090/0.8376/0.8477. The grid's 3 samples per pixel are off by +0.030/+0.009/-0.022, the chirp-z's 7 by
++0.006/+0.003/-0.001. The Fresnel grid of profile ``simulated`` is coarser still: see :mod:`hdrcam.optics.grid`.
 
 Intensities are normalised so the light through the aperture carries unit energy.
 """
@@ -38,7 +49,7 @@ from hdrcam.optics.heightmap import HeightMap, feature_indices, sample_heightmap
 from hdrcam.optics.materials import refractive_index
 from hdrcam.optics.propagation import angular_spectrum_transfer, fresnel_transfer_axis, propagate
 from hdrcam.optics.spectrum import band_wavelengths_m
-from hdrcam.errors import InputError, TooLargeError
+from hdrcam.errors import InputError, SamplingError, TooLargeError
 from hdrcam.limits import check_memory
 from hdrcam.profiles import Profile, image_distance_m
 
@@ -59,7 +70,8 @@ class PsfResult:
 @dataclasses.dataclass(frozen=True)
 class OpticalSetup:
     """Geometry and sampling of one simulation (metres). ``grid`` is None for the "fraunhofer" model, which
-    samples the pupil on the DOE's features instead of a lens-phase grid."""
+    samples the pupil on cells of the DOE's features (:func:`hdrcam.optics.fraunhofer.samples_per_feature_for`)
+    instead of a lens-phase grid."""
 
     grid: SimulationGrid | None
     pixel_pitch_m: float
@@ -91,12 +103,7 @@ class OpticalSetup:
             pixel_pitch_m=profile.camera.pixel_pitch_m, aperture_m=profile.doe.aperture_m,
             focal_length_m=profile.lens.focal_length_m, shortest_wavelength_m=min(min(b) for b in bands),
             psf_size_px=size, upsample=upsample, allow_aliasing=allow_aliasing)
-        if grid is None:  # chirp-z: the sub-pixel crop of one wavelength dominates
-            subsampled = size * FRAUNHOFER_SUBPIXELS
-            check_memory(f"a {subsampled} x {subsampled} chirp-z PSF crop ({size} px, {FRAUNHOFER_SUBPIXELS} points "
-                         "per pixel)", subsampled ** 2 * WAVE_BYTES_PER_SAMPLE,
-                         "use a smaller --psf-size, or a machine with more memory")
-        else:
+        if grid is not None:  # the chirp-z model checks its own buffers, which depend on the height map's cells
             check_memory(f"a {grid.size} x {grid.size} wave simulation ({size} px PSF, {grid.upsample} samples per "
                          "pixel)", grid.size ** 2 * WAVE_BYTES_PER_SAMPLE,
                          "use a smaller --psf-size or --upsample, or a machine with more memory")
@@ -124,6 +131,18 @@ def check_wavelength_samples(samples: int, band_edges_m) -> None:
                             "full wave simulation")
 
 
+def check_features_resolved(feature_pitch_m: float, grid: SimulationGrid, propagation: str) -> None:
+    """Refuse height-map features finer than the grid pitch: the grid picks one feature per sample (nearest
+    neighbour), so finer relief would alias into false orders. A relative 1e-6 tolerates float32 pitches."""
+    if feature_pitch_m < grid.pitch_m * (1.0 - 1e-6):
+        needed = math.ceil(grid.pixel_pitch_m / feature_pitch_m * (1.0 - 1e-6))
+        raise SamplingError(f"height-map features of {feature_pitch_m * 1e6:.4g} um are finer than the "
+                            f"{grid.pitch_m * 1e6:.4g} um grid of the {propagation} propagation "
+                            f"({grid.upsample} samples per {grid.pixel_pitch_m * 1e6:.4g} um pixel) and would alias; "
+                            f"simulate it with `hdrcam psf --upsample {needed}` or more, or with the chirp-z model "
+                            "(--propagation fraunhofer, or propagation = \"fraunhofer\" in the profile)")
+
+
 def source_lens_phase_rad(radius2_m2: np.ndarray, wavelength_m: float, source_distance_m: float,
                           focal_length_m: float, exact: bool) -> np.ndarray:
     """Phase of the source wave times the lens (float64, pistons removed), at squared radius r^2."""
@@ -147,6 +166,7 @@ class PsfSimulator(nn.Module):
             self.fraunhofer = fraunhofer_for(setup, heightmap, dtype=dtype)
             return
         grid = setup.grid
+        check_features_resolved(heightmap.feature_pitch_m, grid, setup.propagation)
         coordinates = grid.coordinates_m()
         self._coordinates_m = coordinates
         radius2 = coordinates[:, None] ** 2 + coordinates[None, :] ** 2

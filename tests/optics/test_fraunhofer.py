@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.special
 import torch
 
 from hdrcam.optics.fraunhofer import FraunhoferPsf
@@ -102,8 +103,10 @@ def test_agrees_with_the_fresnel_grid_simulation():
 
 
 def test_defocus_that_aliases_is_refused():
+    """With samples_per_feature given: the message names what a user can change (no option sets the cells)."""
     from hdrcam.errors import SamplingError
-    with pytest.raises(SamplingError, match="defocus"):
+    with pytest.raises(SamplingError, match=r"defocus .* bring the source \(--depth\) nearer the focus distance, "
+                                            r"or use --propagation fresnel$"):
         _model(aperture_m=9.16e-3, feature_m=6e-6, features=1527, psf_size_px=11, source_distance_m=0.06)
 
 
@@ -120,3 +123,143 @@ def test_samples_per_pixel_are_refused_for_chirp_z_rather_than_ignored():
         OpticalSetup.from_profile(chirp_z, upsample=3)
     assert OpticalSetup.from_profile(chirp_z).grid is None
     assert OpticalSetup.from_profile(load_profile("simulated"), upsample=3).grid.upsample == 3
+
+
+def _simulated_chirp_z(**setup_options):
+    import dataclasses
+
+    from hdrcam.optics.psf import OpticalSetup
+    from hdrcam.profiles import load_profile
+
+    profile = load_profile("simulated")
+    profile = dataclasses.replace(profile, simulation=dataclasses.replace(profile.simulation, propagation="fraunhofer"))
+    return profile, OpticalSetup.from_profile(profile, **setup_options)
+
+
+def _airy_pixels(setup, wavelength_m: float, points_per_pixel: int) -> np.ndarray:
+    """Airy pattern of the setup's aperture, summed over points_per_pixel^2 points of each pixel, unit sum."""
+    size, pitch = setup.psf_size_px, setup.pixel_pitch_m
+    offsets = (np.arange(size * points_per_pixel) - (size // 2 * points_per_pixel + (points_per_pixel - 1) / 2)) \
+        * pitch / points_per_pixel
+    radius_m = np.hypot(offsets[:, None], offsets[None, :])
+    v = np.pi * setup.aperture_m * radius_m / (wavelength_m * setup.sensor_distance_m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        intensity = np.where(v == 0, 1.0, (2 * scipy.special.j1(v) / v) ** 2)
+    pixels = intensity.reshape(size, points_per_pixel, size, points_per_pixel).sum(axis=(1, 3))
+    return pixels / pixels.sum()
+
+
+@pytest.mark.parametrize("features", [1, 4])
+def test_a_coarse_map_still_images_a_circular_aperture(features):
+    """A clear map of 1 x 1 or 4 x 4 features on the simulated profile's 2.048 mm aperture. On one cell per
+    feature the aperture was a square (1 x 1: green centre pixel 0.673) or a staircase (4 x 4: 0.582) against the
+    Airy pattern's 0.606; features are now split into >= MIN_APERTURE_CELLS cells across the aperture."""
+    from hdrcam.optics.fraunhofer import FRAUNHOFER_SUBPIXELS
+    from hdrcam.optics.heightmap import FixedHeightMap
+
+    _, setup = _simulated_chirp_z(psf_size_px=31)
+    heightmap = FixedHeightMap(np.zeros((features, features)), setup.aperture_m / features, dtype=torch.float64)
+    simulator = PsfSimulator(setup, heightmap, dtype=torch.float64)
+    with torch.no_grad():
+        psf = simulator().psf.numpy()
+    for channel, band in enumerate(setup.band_wavelengths_m):
+        airy = _airy_pixels(setup, band[0], FRAUNHOFER_SUBPIXELS)  # the same points per pixel: only the pupil differs
+        assert psf[channel, 15, 15] == pytest.approx(airy[15, 15], rel=0.003), channel
+        assert np.abs(psf[channel] - airy).sum() < 0.01, channel
+    from hdrcam.optics.fraunhofer import MIN_APERTURE_CELLS
+    assert features * simulator.fraunhofer.samples_per_feature == MIN_APERTURE_CELLS
+
+
+def _defocused_energy_within(radii_m, *, aperture_m, wavelength_m, sensor_distance_m, curvature_per_m):
+    """Fraction of the light of a clear circular pupil with phase pi c r^2 / lambda within each sensor radius:
+    the Fresnel-Hankel transform u(rho) = 2 pi / (lambda L) int_0^R exp(j pi c r^2 / lambda) J0(2 pi r rho /
+    (lambda L)) r dr, integrated by Simpson's rule (no pupil cells)."""
+    def simpson(points):
+        weights = np.full(points.size, 2.0)
+        weights[1:-1:2], weights[0], weights[-1] = 4.0, 1.0, 1.0
+        return weights * (points[1] - points[0]) / 3
+
+    scale = wavelength_m * sensor_distance_m
+    r = np.linspace(0.0, aperture_m / 2, 2001)
+    pupil = np.exp(1j * np.pi * curvature_per_m * r ** 2 / wavelength_m) * r * simpson(r)
+    energies = []
+    for radius_m in radii_m:
+        rho = np.linspace(0.0, radius_m, 3001)
+        field = 2 * np.pi / scale * (scipy.special.j0(2 * np.pi * np.outer(rho, r) / scale) @ pupil)
+        energies.append(float((np.abs(field) ** 2 * 2 * np.pi * rho) @ simpson(rho)) / (np.pi * (aperture_m / 2) ** 2))
+    return energies
+
+
+def test_a_defocused_source_puts_no_ghost_ring_around_its_blur():
+    """Simulated profile, source at 0.25 m (focus at 5 m): on one 32 um cell per feature the defocus phase was a
+    staircase and 4.9 % of the green light formed a ring at 40-75 px (replicas lambda L / 32 um = 58 px apart),
+    leaving 0.912 within 25 px. The Fresnel-Hankel integral gives 0.990 within 25 px and 0.27 % in the ring."""
+    from hdrcam.optics.heightmap import flat_heightmap
+
+    profile, setup = _simulated_chirp_z(source_distance_m=0.25, psf_size_px=161)
+    simulator = PsfSimulator(setup, flat_heightmap(setup.aperture_m, profile.doe.feature_size_m, torch.float64),
+                             dtype=torch.float64)
+    curvature = 1 / 0.25 - 1 / setup.focal_length_m + 1 / setup.sensor_distance_m
+    with torch.no_grad():
+        result = simulator()
+    green = (result.psf * result.crop_energy_fraction[:, None, None])[1].numpy()
+    offsets = np.arange(161) - 80
+    radius_px = np.hypot(offsets[:, None], offsets[None, :])
+    pitch = setup.pixel_pitch_m
+    within_25, within_40, within_75 = _defocused_energy_within(
+        [25 * pitch, 40 * pitch, 75 * pitch], aperture_m=setup.aperture_m, wavelength_m=550e-9,
+        sensor_distance_m=setup.sensor_distance_m, curvature_per_m=curvature)
+    assert green[radius_px < 25].sum() == pytest.approx(within_25, abs=0.005)  # <= MAX_DEFOCUS_STEP_RAD^2 / 24
+    assert green[(radius_px > 40) & (radius_px < 75)].sum() == pytest.approx(within_75 - within_40, abs=0.001)
+    from hdrcam.optics.fraunhofer import MAX_DEFOCUS_STEP_RAD, defocus_edge_step_rad
+    cell_m = profile.doe.feature_size_m / simulator.fraunhofer.samples_per_feature
+    assert defocus_edge_step_rad(curvature, setup.aperture_m, cell_m, 450e-9) <= MAX_DEFOCUS_STEP_RAD
+
+
+def test_the_a7_profile_in_focus_keeps_one_cell_per_feature():
+    """Its 1527 features of 6 um already span the aperture and the defocus phase is zero: the PSF the shipped
+    networks were trained behind is unchanged."""
+    from hdrcam.optics.fraunhofer import defocus_curvature_per_m, samples_per_feature_for
+    from hdrcam.optics.psf import OpticalSetup
+    from hdrcam.profiles import load_profile
+
+    profile = load_profile("sony-a7-zeiss50-rank1")
+    setup = OpticalSetup.from_profile(profile)
+    curvature = defocus_curvature_per_m(setup.source_distance_m, setup.focal_length_m, setup.sensor_distance_m)
+    assert samples_per_feature_for(aperture_m=setup.aperture_m, feature_pitch_m=profile.doe.feature_size_m,
+                                   curvature_per_m=curvature, shortest_wavelength_m=450e-9) == 1
+    assert samples_per_feature_for(aperture_m=setup.aperture_m, feature_pitch_m=profile.doe.feature_size_m,
+                                   curvature_per_m=defocus_curvature_per_m(0.5, setup.focal_length_m,
+                                                                           setup.sensor_distance_m),
+                                   shortest_wavelength_m=450e-9) == 2  # 0.69 rad per 6 um cell at 450 nm
+
+
+def test_memory_is_checked_for_every_wavelength_before_allocating(monkeypatch):
+    """`hdrcam psf --wavelengths-per-band 30` passed a check of one wavelength's crop and failed at 4.3 GB: each
+    wavelength holds a cells^2 defocus and a crop^2 envelope. A defocus that needs a huge pupil is refused the same
+    way (A7 at 0.06 m: 17 cells per feature, 25959^2 cells)."""
+    from hdrcam import limits
+    from hdrcam.errors import TooLargeError
+    from hdrcam.optics.heightmap import flat_heightmap
+    from hdrcam.optics.psf import OpticalSetup
+    from hdrcam.profiles import load_profile
+
+    profile, many = _simulated_chirp_z(wavelengths_per_band=30)
+    heightmap = flat_heightmap(many.aperture_m, profile.doe.feature_size_m)
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 60e6)  # room for 30 wavelengths, not 90
+    with pytest.raises(TooLargeError, match="90 wavelengths .* --wavelengths-per-band") as refused:
+        PsfSimulator(many, heightmap)
+    assert "\n" not in str(refused.value)
+    a7 = load_profile("sony-a7-zeiss50-rank1")
+    with pytest.raises(TooLargeError, match=r"25959 x 25959 pupil cells \(17 per 6 um feature\).* --depth"):
+        PsfSimulator(OpticalSetup.from_profile(a7, source_distance_m=0.06), flat_heightmap(9.16e-3, 6e-6))
+
+    from hdrcam.optics.fraunhofer import fraunhofer_memory_bytes
+    monkeypatch.undo()
+    _, setup = _simulated_chirp_z(wavelengths_per_band=10)
+    model = PsfSimulator(setup, heightmap).fraunhofer
+    held = sum(buffer.numel() * buffer.element_size() for buffer in model.buffers())
+    cells, crop = 64 * model.samples_per_feature, setup.psf_size_px * model.subpixels
+    estimate = fraunhofer_memory_bytes(cells, crop, 30, torch.float32)
+    assert held < estimate < 60e6 < fraunhofer_memory_bytes(cells, crop, 90, torch.float32)
+    assert estimate < 2 * held + fraunhofer_memory_bytes(cells, crop, 1, torch.float32)

@@ -91,3 +91,32 @@ def test_energy_regulariser_on_known_psfs():
     loss.backward()
     assert float(uniform.grad[:, 4, 4].mean()) < 0  # more energy at the centre lowers the loss
     assert float(energy_regulariser(torch.full((3,), 0.94), 0.94)) == 0.0
+
+
+@pytest.mark.parametrize("pitch_m", [float("inf"), 1.0, 6.0, 3e-3, 1e-8])
+def test_a_pitch_that_is_no_doe_feature_is_refused(pitch_m, tmp_path):
+    """inf passed `pitch > 0` and 1 m gave a NaN chirp-z PSF; 6 is 6 um written in micrometres."""
+    path = save_heightmap(tmp_path / "h.exr", np.zeros((64, 64)), pitch_m)
+    with pytest.raises(InputError, match=r"h\.exr: 'pixel_pitch_m' .* outside 0\.1 um \.\. 1 mm.*metres"):
+        load_heightmap(path, 2.048e-3)
+
+
+@pytest.mark.parametrize("height_m", [0.5, 1.2, -1e-7])
+def test_heights_in_the_wrong_unit_or_below_zero_are_refused(height_m, tmp_path):
+    """0.5 m of relief everywhere (micrometres stored as metres) simulated silently."""
+    path = save_heightmap(tmp_path / "h.exr", np.full((64, 64), height_m), 32e-6)
+    with pytest.raises(InputError, match=r"h\.exr: heights span .* outside 0 \.\. 100 um.*1\.2e-6"):
+        load_heightmap(path, 2.048e-3)
+
+
+def test_a_multi_order_relief_above_h_max_loads_and_fabrication_still_refuses_it(tmp_path):
+    """Heights above one wave are a physical (multi-order) DOE: the file loads and simulates; only the 2^k-level
+    lithography export, whose levels span [0, h_max], refuses them."""
+    from hdrcam.optics.fabrication import quantise_heightmap
+
+    doe = load_profile("simulated").doe
+    path = save_heightmap(tmp_path / "h.exr", np.full((64, 64), 3 * doe.h_max_m), doe.feature_size_m)
+    heights = load_heightmap(path, doe.aperture_m)().numpy()
+    np.testing.assert_allclose(heights, 3 * doe.h_max_m, rtol=1e-6)
+    with pytest.raises(ValueError, match=r"outside \[0, h_max"):
+        quantise_heightmap(heights.astype(np.float64), doe.h_max_m, doe.levels)

@@ -145,3 +145,45 @@ def test_band_psf_is_the_mean_of_its_wavelength_samples():
                                   heightmap).sensor_psf_uncropped()
     torch.testing.assert_close(banded[1], green)
     assert float((banded - one_sample).abs().sum()) > 1e-3  # the band integral differs from the narrow-band model
+
+
+@pytest.mark.parametrize("propagation", ["fresnel", "angular_spectrum"])
+def test_features_finer_than_the_grid_are_refused_with_the_remedies(propagation):
+    """A map of 1 um features on a 2 um grid: nearest-neighbour sampling kept every other feature, and a 4 um
+    blazed grating put a false order 157 px off axis on the simulated profile. --upsample 6 (1 um) is accepted,
+    as is a map on exactly the grid pitch read back from a float32 EXR attribute."""
+    from hdrcam.errors import SamplingError
+
+    setup = single_wavelength_setup(aperture_m=0.2e-3, focal_length_m=5e-3, upsample=3, propagation=propagation)
+    heightmap = flat_heightmap(setup.aperture_m, 1e-6)
+    with pytest.raises(SamplingError, match=r"features of 1 um .* 2 um grid .* --upsample 6` or more, or .*"
+                                            r"--propagation fraunhofer"):
+        PsfSimulator(setup, heightmap)
+    PsfSimulator(setup, flat_heightmap(setup.aperture_m, float(np.float32(setup.grid.pitch_m))))
+    PsfSimulator(single_wavelength_setup(aperture_m=0.2e-3, focal_length_m=5e-3, upsample=6, propagation=propagation),
+                 heightmap)
+
+
+def test_the_chirp_z_remedy_images_features_finer_than_a_pixel_grid_exactly():
+    """--propagation fraunhofer on the map above: a 4-level blaze of period 4 um on 1 um features, one wave deep at
+    550 nm, puts sinc^2(1/4) = 0.811 of the light at x = lambda L / 4 um (688 um, 115 px), none at the axis."""
+    wavelength, period_features, feature_m = 550e-9, 4, 1e-6
+    setup = single_wavelength_setup(aperture_m=0.2e-3, focal_length_m=5e-3, propagation="fraunhofer",
+                                    psf_size_px=301)
+    phase_per_height = 2 * np.pi / wavelength * (float(refractive_index("fused_silica", wavelength)) - 1)
+    features = 200
+    levels = np.arange(features) % period_features
+    heights = np.repeat((levels / period_features * 2 * np.pi / phase_per_height)[None, :], features, axis=0)
+    with torch.no_grad():
+        blazed = PsfSimulator(setup, FixedHeightMap(heights, feature_m, dtype=torch.float64), dtype=torch.float64)()
+        clear = PsfSimulator(setup, flat_heightmap(setup.aperture_m, feature_m, dtype=torch.float64),
+                             dtype=torch.float64)()
+    grating = (blazed.psf * blazed.crop_energy_fraction[:, None, None])[1].numpy()
+    lens = (clear.psf * clear.crop_energy_fraction[:, None, None])[1].numpy()
+    centre = 301 // 2
+    column = centre + int(round(wavelength * setup.sensor_distance_m / (period_features * feature_m) / 6e-6))
+    half = 12  # +-12 px: four Airy radii (17 um each)
+    in_order = grating[centre - half:centre + half + 1, column - half:column + half + 1].sum()
+    in_spot = lens[centre - half:centre + half + 1, centre - half:centre + half + 1].sum()
+    assert in_order / in_spot == pytest.approx(np.sinc(1 / period_features) ** 2, abs=0.002)
+    assert grating[centre - half:centre + half + 1, centre - half:centre + half + 1].sum() < 1e-3
