@@ -207,4 +207,4 @@ def simulation_psf(profile: Profile, choice: str = "doe", *, seed: int = 0) -> n
         simulator = PsfSimulator(setup, heightmap_for_doe(profile.doe, profile.doe.kind, seed=seed))
         with torch.no_grad():
             return simulator().psf.numpy().astype(np.float32)
-    return load_psf(Path(choice))
+    return load_psf(Path(choice), pixel_pitch_m=profile.camera.pixel_pitch_m)

@@ -72,14 +72,16 @@ def run(arguments: argparse.Namespace) -> int:
                                       psf_size_px=arguments.psf_size, upsample=arguments.upsample,
                                       allow_aliasing=arguments.allow_aliasing)
     grid = setup.grid
-    sampling = (f"chirp-z on the DOE's {heightmap.feature_pitch_m * 1e6:.3g} um features, {FRAUNHOFER_SUBPIXELS} "
-                f"points per pixel" if grid is None else
+    started = time.perf_counter()
+    simulator = PsfSimulator(setup, heightmap, dtype=dtype).to(device)
+    cells_per_feature = simulator.fraunhofer.samples_per_feature if grid is None else None
+    sampling = (f"chirp-z on {cells_per_feature} x {cells_per_feature} cells per "
+                f"{heightmap.feature_pitch_m * 1e6:.3g} um feature, {FRAUNHOFER_SUBPIXELS} points per pixel"
+                if grid is None else
                 f"grid {grid.size} x {grid.size} at {grid.pitch_m * 1e6:.3f} um ({grid.upsample} samples per pixel)")
     print(f"profile {profile.name}: DOE {doe_choice}, source at {setup.source_distance_m:g} m, sensor at "
           f"{setup.sensor_distance_m * 1e3:.3f} mm; {sampling}, {sum(map(len, setup.band_wavelengths_m))} "
           f"wavelengths, {device}")
-    started = time.perf_counter()
-    simulator = PsfSimulator(setup, heightmap, dtype=dtype).to(device)
     with torch.no_grad():
         result = simulator()
         heights = heightmap().detach().cpu().numpy()
@@ -95,7 +97,7 @@ def run(arguments: argparse.Namespace) -> int:
         "doe": doe_choice, "seed": arguments.seed, "source_distance_m": setup.source_distance_m,
         "sensor_distance_m": setup.sensor_distance_m, "propagation": setup.propagation,
         "wavelengths_m": [list(band) for band in setup.band_wavelengths_m],
-        **({"subpixels": FRAUNHOFER_SUBPIXELS} if grid is None else
+        **({"subpixels": FRAUNHOFER_SUBPIXELS, "cells_per_feature": cells_per_feature} if grid is None else
            {"grid_size": grid.size, "grid_pitch_m": grid.pitch_m, "upsample": grid.upsample}),
         "psf_size_px": setup.psf_size_px, "pixel_pitch_m": setup.pixel_pitch_m,
         "centre_energy_fraction_rgb": centre.tolist(), "crop_energy_fraction_rgb": crop.tolist(),

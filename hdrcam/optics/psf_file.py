@@ -13,17 +13,27 @@ from hdrcam.io.exr import read_exr
 PSF_UNITS = "unit sum per channel"  # the "units" attribute of a PSF EXR hdrcam writes (calibrate psf)
 
 
-def load_psf(path: Path) -> np.ndarray:
+PITCH_TOLERANCE = 0.01  # relative: a PSF measured at another pixel pitch than the camera's is another PSF
+
+
+def load_psf(path: Path, *, pixel_pitch_m: float | None = None) -> np.ndarray:
     """A PSF EXR as 3 x k x k float32, each channel normalised to unit sum.
 
     Tiny negative values (noise left by a measured calibration, down to -1e-3 of the channel's peak) are
     set to zero; larger ones, NaN or Inf, a non-square image, an all-zero channel, or an EXR whose "units"
-    attribute says it holds something else (a frame, an HDR image) are errors.
+    attribute says it holds something else (a frame, an HDR image) are errors. With ``pixel_pitch_m`` (the
+    camera's, metres), a file whose "pixel_pitch_m" attribute differs by more than 1 % is an error too: its
+    pixels are another size than the camera's.
     """
     image = read_exr(Path(path))
     units = image.attributes.get("units")
     if units is not None and units != PSF_UNITS:  # hdrcam's frames and HDR images say what they hold
         raise InputError(f"{path}: not a PSF - an image of {units!r} (a PSF EXR holds {PSF_UNITS!r} or no units)")
+    file_pitch_m = image.attributes.get("pixel_pitch_m")
+    if pixel_pitch_m is not None and isinstance(file_pitch_m, (int, float)) and \
+            not abs(file_pitch_m / pixel_pitch_m - 1.0) <= PITCH_TOLERANCE:
+        raise InputError(f"{path}: a PSF of {file_pitch_m * 1e6:.4g} um pixels, but the camera's are "
+                         f"{pixel_pitch_m * 1e6:.4g} um; measure or simulate the PSF with this camera's profile")
     psf = image.rgb().transpose(2, 0, 1).astype(np.float64)
     if psf.shape[1] != psf.shape[2]:
         raise InputError(f"{path}: a PSF must be square, got {psf.shape[1]} x {psf.shape[2]}")

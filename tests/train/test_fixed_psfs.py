@@ -43,3 +43,18 @@ def test_fixed_psfs_are_unit_sum_intensities_of_the_profile_size(name):
     size = PROFILE.simulation.psf_size_px
     assert psf.shape == (3, size, size) and psf.dtype == np.float32
     assert psf.min() >= 0 and np.allclose(psf.sum(axis=(1, 2)), 1.0, atol=1e-5)
+
+
+def test_a_psf_file_of_another_pixel_pitch_is_refused_and_one_without_a_pitch_is_taken(tmp_path):
+    from hdrcam.errors import InputError
+    from hdrcam.io.exr import write_exr
+
+    profile = load_profile("simulated")
+    psf = np.ones((15, 15, 3), np.float32)
+    write_exr(tmp_path / "other.exr", psf, attributes={"pixel_pitch_m": 3e-6})
+    write_exr(tmp_path / "same.exr", psf, attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m})
+    write_exr(tmp_path / "bare.exr", psf)
+    with pytest.raises(InputError, match="a PSF of 3 um pixels, but the camera's are 5.97"):
+        fixed_psf(str(tmp_path / "other.exr"), profile)
+    for name in ("same.exr", "bare.exr"):
+        assert np.allclose(fixed_psf(str(tmp_path / name), profile), 1 / 225)
