@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from hdrcam import __version__
 from hdrcam.cli.arguments import add_profile_option, naming_input, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_paths, check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs, write_text_atomic
 from hdrcam.profiles import load_profile
 
 if TYPE_CHECKING:
@@ -88,8 +88,8 @@ def run(arguments: argparse.Namespace) -> int:
                        attributes={"levels": levels, "step_m": quantised.step_m})
         for bit, mask in enumerate(quantised.masks()):
             write_png(written[f"mask{bit}"], mask.astype(np.uint8) * 255, overwrite=True)
-        written["report_json"].write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-        written["report_md"].write_text(_markdown(report), encoding="utf-8")
+        write_text_atomic(written["report_json"], json.dumps(report, indent=2) + "\n", overwrite=True)
+        write_text_atomic(written["report_md"], _markdown(report), overwrite=True)
         if quantised_psf is not None:
             write_exr(written["psf"], quantised_psf, attributes={"pixel_pitch_m": profile.camera.pixel_pitch_m},
                       overwrite=True)

@@ -12,7 +12,7 @@ from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
                                   naming_input, positive_float, positive_int, random_seed)
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_paths, check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs, write_text_atomic
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
 
 OUTPUT_NAMES = ("psf.exr", "heightmap.exr", "psf.png", "psf.json")
@@ -109,7 +109,7 @@ def run(arguments: argparse.Namespace) -> int:
         save_heightmap(heightmap_file, heights, heightmap.feature_pitch_m, overwrite=True)
         write_png(preview_file, side_by_side([log_psf_rgb(psf), heightmap_rgb(heights, profile.doe.h_max_m)]),
                   overwrite=True)
-        record_file.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+        write_text_atomic(record_file, json.dumps(record, indent=2) + "\n", overwrite=True)
     print(f"PSF {setup.psf_size_px} x {setup.psf_size_px} px in {seconds:.2f} s; energy in the "
           f"{2 * setup.energy_centre_radius_px + 1} px centre (R, G, B): {', '.join(f'{v:.4f}' for v in centre)}; "
           f"in the crop: {', '.join(f'{v:.4f}' for v in crop)}")

@@ -11,7 +11,7 @@ import numpy as np
 
 from hdrcam.evaluate.metrics import HARM_DB
 from hdrcam.evaluate.scoring import Example, ScoredImage
-from hdrcam.io.atomic import atomic_paths
+from hdrcam.io.atomic import atomic_paths, write_text_atomic
 from hdrcam.io.jpeg import write_jpeg
 from hdrcam.preview import log_average_luminance, tonemap_rgb
 
@@ -103,7 +103,7 @@ def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], de
     """metrics.csv, summary.md and (with examples) examples.jpg in ``out``, published together or not at all."""
     paths = [out / "metrics.csv", out / "summary.md"] + ([out / "examples.jpg"] if examples else [])
     with atomic_paths(paths, overwrite=overwrite) as temporaries:
-        temporaries[0].write_text(metrics_csv(rows), encoding="utf-8")
-        temporaries[1].write_text(summary_markdown(rows, description), encoding="utf-8")
+        write_text_atomic(temporaries[0], metrics_csv(rows), overwrite=True)  # an error names the file
+        write_text_atomic(temporaries[1], summary_markdown(rows, description), overwrite=True)
         if examples:
             write_jpeg(temporaries[2], examples_figure(examples), overwrite=True)

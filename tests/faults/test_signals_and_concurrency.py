@@ -123,12 +123,21 @@ def test_a_disk_failure_mid_capture_leaves_a_manifest_listing_the_frames_taken(t
     assert_every_frame_on_disk_is_listed(out)
 
 
-def test_a_capture_refused_part_way_keeps_and_lists_its_frames(tmp_path, capsys):
+def test_a_capture_refused_part_way_keeps_and_lists_its_frames(tmp_path, capsys, monkeypatch):
+    """A frame the camera sends that --auto cannot use (here: one of another size than the region of interest
+    was checked against before the first shot) stops the bracket after that frame."""
+    import hdrcam.capture.bracket
+    from hdrcam.errors import InputError
+
+    def another_size(*arguments):
+        raise InputError("--roi 0,0,10,10 reaches past the 8 x 8 px frame the camera sent")
+
+    monkeypatch.setattr(hdrcam.capture.bracket, "frame_statistics", another_size)
     out = tmp_path / "bracket"
-    argv = LONG_CAPTURE[:-5] + ["64x48", "--stops", "3", "--auto", "--roi", "500,500,10,10", "--out", out]
-    assert_failed_with_one_line(run(argv, capsys), 1, "region of interest")
+    argv = LONG_CAPTURE[:-5] + ["64x48", "--stops", "3", "--auto", "--roi", "0,0,10,10", "--out", out]
+    assert_failed_with_one_line(run(argv, capsys), 1, "reaches past")
     bracket = load_bracket(out)
-    assert bracket.status == "incomplete" and "region of interest" in bracket.error and len(bracket.frames) == 1
+    assert bracket.status == "incomplete" and "reaches past" in bracket.error and len(bracket.frames) == 1
     assert_every_frame_on_disk_is_listed(out)
 
 
