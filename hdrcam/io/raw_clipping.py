@@ -3,8 +3,9 @@
 Many bodies clip below the white level their files declare (a pile-up at 13 500-16 372 DN where the
 metadata says 15 000-16 383), and lossy compression (Sony cRAW) scatters the clipped samples a little
 above the pile-up. Per position of the 2 x 2 CFA tile, the clip level is the most populated single value in
-the top part of the range when it stands far above the histogram just below it (a spike, not the smooth
-tail of a bright area); then every sample at or above it is clipped. Without such a pile-up the clip level
+the top part of the range when it stands far above the histogram just below it - its mean and its nearest
+occupied values (a spike, not the smooth tail of a bright area, nor the noise peak of a flat one); then every
+sample at or above it is clipped. Without such a pile-up the clip level
 is the metadata white level - unless no sample reaches the top part of the range, when a pile-up at the largest
 sample is looked for (a white level far above the data). A clip level is never above the white level.
 """
@@ -15,8 +16,13 @@ import cv2
 import numpy as np
 
 SEARCH_FROM = 0.5  # of the black-to-white range: a pile-up below this is not a clip level
-MIN_PILE_SAMPLES = 16  # fewer samples at one value are hot pixels or chance
-PILE_CONTRAST = 8.0  # the pile-up's count over the mean count per occupied value just below it
+MIN_PILE_SAMPLES = 8  # fewer samples at one value are hot pixels or chance (3 clipped 4 x 4 px lights give 12)
+PILE_CONTRAST = 8.0  # the pile-up's count over the mean count per occupied value just below it...
+NEAREST_BELOW = 3  # ...and over the mean count of this many nearest occupied values below it, by
+NEAREST_CONTRAST = 3.0  # this much: the noise peak of a flat, unclipped area (a wall at 0.75 of white, sigma ~60
+# DN) stands far above the window's mean but hardly above its own neighbours (a ratio of 1 to 1.3); a clipped
+# sensor's pile-up stands far above them (values on a coarser grid - 12-bit data in a 14-bit file - leave
+# neighbours empty: the nearest occupied ones count)
 BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-up is compared with
 
 
@@ -55,9 +61,11 @@ def _pile_up(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float, at_ceil
     peak = int(np.argmax(counts))
     pile = int(counts[peak])
     below = counts[max(0, peak - max(int(BELOW_WINDOW * span), 8)):peak]
-    occupied = int(np.count_nonzero(below))
-    density = below.sum() / occupied if occupied else 0.0
-    if pile < MIN_PILE_SAMPLES or pile < PILE_CONTRAST * density or (at_ceiling_only and low + peak != ceiling_dn):
+    occupied = below[below > 0]
+    density = occupied.mean() if occupied.size else 0.0
+    nearest = occupied[-NEAREST_BELOW:].mean() if occupied.size else 0.0
+    if pile < MIN_PILE_SAMPLES or pile < PILE_CONTRAST * density or pile < NEAREST_CONTRAST * nearest or \
+            (at_ceiling_only and low + peak != ceiling_dn):
         return None
     return float(min(low + peak, ceiling_dn))
 

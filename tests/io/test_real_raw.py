@@ -48,8 +48,9 @@ def test_the_real_arw_decodes_as_libraw_does(arw):
     assert abs(np.linalg.det(meta.xyz_to_camera)) > 0.1
     assert (meta.make, meta.camera_model, meta.file_format) == ("SONY", "SONY ILCE-7RM3", "ARW")
     assert (meta.exposure_s, meta.iso, meta.f_number) == (0.0015625, 3200.0, 6.3)
-    # cRAW: clipped greens and blues pile up at 16372, below the metadata white, scattered up to 16628 above it
-    assert frame.clip_level_tile_dn[0, 1] == 16372 and frame.clip_level_tile_dn[1, 1] == 16372
+    # cRAW: clipped greens and blues pile up at 16372, below the metadata white, scattered up to 16628 above it;
+    # the second green's pile holds 14 samples (19 at or above it), which a 16-sample minimum missed
+    assert frame.clip_level_tile_dn.tolist() == [[16383, 16372], [16372, 16372]]
     assert frame.bayer_dn.max() == 16628
 
 
@@ -77,7 +78,7 @@ def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw,
     assert len(lines) == 1
     summary = json.loads(lines[0])
     assert summary["model"] == "SONY ILCE-7RM3" and summary["format"] == "ARW" and summary["cfa"] == "RGGB"
-    assert summary["clip_level_dn"] == [16383.0, 16372.0, 16383.0, 16372.0] and summary["clip_below_white"]
+    assert summary["clip_level_dn"] == [16383.0, 16372.0, 16372.0, 16372.0] and summary["clip_below_white"]
     assert 0 < summary["clipped_fraction"] < 1e-4 and summary["colour_matrix_source"] == "LibRaw"
     assert err.count("\n") == 1 and "half.ARW" in err and "truncated" in err
     with pytest.raises(InputError, match="truncated"):
@@ -420,3 +421,14 @@ def test_shading_opcodes_are_named_once_and_only_for_the_raw_image(tmp_path):
     tifffile.imwrite(path, np.zeros((8, 12, 3), np.uint8), append=True, subfiletype=1, photometric="rgb",
                      extratags=[(51022, "B", len(vignette), vignette, True)], metadata=None)
     assert read_raw_metadata(path).shading_not_applied == ("GainMap (OpcodeList2)",)
+
+
+def test_the_noise_peak_of_a_flat_unclipped_area_is_not_a_clip_level_and_a_dozen_clipped_samples_are():
+    rng = np.random.default_rng(0)
+    ramp = rng.integers(512, 15700, 60_000)  # a bright gradient, nothing clipped
+    wall = np.round(rng.normal(12_000, 60, 20_000))  # a flat wall at 0.75 of white with shot noise
+    samples = np.concatenate([ramp, wall]).astype(np.uint16)
+    assert channel_clip_level(samples, 512, 16383) == 16383  # its peak was taken for the clip: frame x 1.67
+    scene = rng.integers(512, 13_500, 8_000)  # a night scene's sparse bright samples, clipping at 13 500
+    lights = np.concatenate([scene, np.full(12, 13_500)]).astype(np.uint16)  # 3 lights of 4 x 4 px
+    assert channel_clip_level(lights, 512, 16383) == 13_500  # 16 samples were needed: such lights read 0.82
