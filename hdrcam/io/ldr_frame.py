@@ -31,6 +31,8 @@ from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
+BLACK_SLACK = 0.01  # of white below black: read noise is ~1e-4 of white (ISO 100) to ~3e-3 (ISO 25600)
+MAX_BELOW_BLACK = 0.01  # share of samples further below black than that: a black level above the data
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
@@ -108,6 +110,14 @@ def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> 
     height, width = frame.bayer_dn.shape
     black_tile = frame.metadata.black_level_tile()
     scale_dn = float((frame.clip_level_tile_dn - black_tile).min())
+    if not scale_dn > 0:
+        raise InputError(f"{frame.metadata.path}: its black level ({black_tile.max():g} DN) is not below its clip "
+                         f"level ({frame.clip_level_tile_dn.min():g} DN): the file's levels are wrong")
+    below_dn = tiled(black_tile - BLACK_SLACK * scale_dn, height, width)
+    if float(np.mean(frame.bayer_dn < below_dn)) > MAX_BELOW_BLACK:
+        raise InputError(f"{frame.metadata.path}: more than {100 * MAX_BELOW_BLACK:g} % of the samples lie more "
+                         f"than {100 * BLACK_SLACK:g} % of white below its black level ({black_tile.max():g} DN): "
+                         "the file's black level is above its data - check how it was made")
     signal_dn = np.clip(frame.bayer_dn.astype(np.float32) - tiled(black_tile, height, width), 0.0, scale_dn)
     if np.all(black_tile == np.round(black_tile)) and scale_dn == round(scale_dn) and scale_dn < 65536:
         signal_dn = signal_dn.astype(np.uint16)  # exact: OpenCV's integer demosaicing

@@ -324,6 +324,13 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
         raise InputError(f"{path}: colour filter {raw.color_desc.decode(errors='replace')} of "
                          f"{pattern.shape[0]} x {pattern.shape[1]} is not a 2 x 2 RGB Bayer mosaic; hdrcam merges "
                          "those only")
+    tile = "".join(_CFA_LETTERS[i] for i in pattern.ravel())
+    if tile not in BAYER_TILES:  # R, G and B, but not each green diagonal to the other (RGBG, RRGB, ...)
+        raise InputError(f"{path}: colour filter tile {tile} is not a Bayer layout ({', '.join(BAYER_TILES)}); "
+                         "hdrcam merges those only")
+
+
+BAYER_TILES = ("RGGB", "BGGR", "GRBG", "GBRG")
 
 
 def _cfa_name(codes: np.ndarray) -> str:

@@ -41,11 +41,12 @@ def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: 
 
     When no sample reaches the top part of the black-to-white range at all, the white level may be far above
     what the sensor delivers (a DNG without WhiteLevel defaults to 2^bits - 1: 12-bit data in 16-bit samples),
-    so a pile-up at the largest sample, found the same way below it, is taken instead."""
+    so a pile-up at the largest sample, found the same way below it, is taken instead - unless that sample is
+    at or below black (a frame with the lens cap on holds no light to clip)."""
     level = _pile_up(samples_dn, black_dn, white_level_dn, at_ceiling_only=False)
     if level is None and samples_dn.size:
         largest = float(samples_dn.max())
-        if _below_top_part(largest, black_dn, white_level_dn):
+        if black_dn < largest and _below_top_part(largest, black_dn, white_level_dn):  # no light: no sensor white
             level = _pile_up(samples_dn, black_dn, largest, at_ceiling_only=True)
     return float(white_level_dn) if level is None else level
 

@@ -211,3 +211,23 @@ def test_a_folder_given_as_a_raw_file_is_named_as_a_folder(tmp_path):
         read_raw(tmp_path)
     with pytest.raises(InputError, match="no such RAW file"):
         read_raw(tmp_path / "missing.ARW")
+
+
+@pytest.mark.parametrize("cfa", ["RGBG", "RRGB", "GRGB"])
+def test_a_two_by_two_tile_of_r_g_b_that_is_no_bayer_layout_is_refused_on_reading(tmp_path, cfa):
+    raw = sensor_dn(np.full((64, 96), 5000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
+    with pytest.raises(InputError, match=f"colour filter tile {cfa} is not a Bayer layout"):
+        read_raw(write_dng(tmp_path / f"{cfa}.dng", raw, cfa=cfa))  # reconstruct ended with exit 3 in demosaic
+
+
+def test_a_lens_cap_frame_reads_as_black_and_a_black_level_above_the_data_is_refused(tmp_path):
+    from hdrcam.io.ldr_frame import read_ldr_frame
+    from hdrcam.io.raw_summary import raw_summary
+
+    capped = write_dng(tmp_path / "cap.dng", np.full((64, 96), 512, np.uint16))
+    assert read_ldr_frame(capped).max() == 0.0  # was 0/0: NaN, two lines of error
+    assert raw_summary(capped)["clipped_fraction"] == 0.0  # inspect called it 100 % clipped
+    raw = sensor_dn(np.full((64, 96), 3000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
+    above = write_dng(tmp_path / "above.dng", raw, black_dn=(9000,) * 4)
+    with pytest.raises(InputError, match="black level is above its data"):
+        read_ldr_frame(above)  # clamped to a black frame, exit 0
