@@ -17,7 +17,8 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
     parser.add_argument("--steps", type=positive_int, default=None, help=f"(default {default_steps})")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
     parser.add_argument("--data", default=None,
-                        help="'procedural' (seeded night scenes, the default) or a folder of .exr/.hdr files")
+                        help="'procedural' (seeded night scenes, the default), a folder of .exr/.hdr files, or a "
+                             "mixture SOURCE:WEIGHT,... (e.g. runs/data/train:0.6,procedural:0.3,photos:0.1)")
     parser.add_argument("--batch", type=positive_int, default=None, help="(default 4)")
     parser.add_argument("--crop", type=positive_int, default=None, metavar="PX",
                         help="crop size (multiple of 16, default 128)")
