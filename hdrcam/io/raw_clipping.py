@@ -18,11 +18,12 @@ import numpy as np
 SEARCH_FROM = 0.5  # of the black-to-white range: a pile-up below this is not a clip level
 MIN_PILE_SAMPLES = 8  # fewer samples at one value are hot pixels or chance (3 clipped 4 x 4 px lights give 12)
 PILE_CONTRAST = 8.0  # the pile-up's count over the mean count per occupied value just below it...
-NEAREST_BELOW = 3  # ...and over the mean count of this many nearest occupied values below it, by
+NEAREST_BELOW = 3  # ...and over the mean count of this many nearest occupied values more than
+PILE_WIDTH_DN = 8  # this far below it, by
 NEAREST_CONTRAST = 3.0  # this much: the noise peak of a flat, unclipped area (a wall at 0.75 of white, sigma ~60
 # DN) stands far above the window's mean but hardly above its own neighbours (a ratio of 1 to 1.3); a clipped
-# sensor's pile-up stands far above them (values on a coarser grid - 12-bit data in a 14-bit file - leave
-# neighbours empty: the nearest occupied ones count)
+# sensor's pile-up stands far above them, even when a per-column offset after the clip spreads it over a few DN
+# (values on a coarser grid - 12-bit data in a 14-bit file - leave neighbours empty: the nearest occupied count)
 BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-up is compared with
 
 
@@ -61,10 +62,13 @@ def _pile_up(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float, at_ceil
         return None
     peak = int(np.argmax(counts))
     pile = int(counts[peak])
-    below = counts[max(0, peak - max(int(BELOW_WINDOW * span), 8)):peak]
+    start = max(0, peak - max(int(BELOW_WINDOW * span), 8))
+    below = counts[start:peak]
     occupied = below[below > 0]
     density = occupied.mean() if occupied.size else 0.0
-    nearest = occupied[-NEAREST_BELOW:].mean() if occupied.size else 0.0
+    outside = counts[start:max(start, peak - PILE_WIDTH_DN)]
+    outside = outside[outside > 0][-NEAREST_BELOW:]
+    nearest = outside.mean() if outside.size else 0.0
     if pile < MIN_PILE_SAMPLES or pile < PILE_CONTRAST * density or pile < NEAREST_CONTRAST * nearest or \
             (at_ceiling_only and low + peak != ceiling_dn):
         return None

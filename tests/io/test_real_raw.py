@@ -432,3 +432,11 @@ def test_the_noise_peak_of_a_flat_unclipped_area_is_not_a_clip_level_and_a_dozen
     scene = rng.integers(512, 13_500, 8_000)  # a night scene's sparse bright samples, clipping at 13 500
     lights = np.concatenate([scene, np.full(12, 13_500)]).astype(np.uint16)  # 3 lights of 4 x 4 px
     assert channel_clip_level(lights, 512, 16383) == 13_500  # 16 samples were needed: such lights read 0.82
+
+
+def test_a_pile_up_spread_over_a_few_dn_is_still_found():
+    rng = np.random.default_rng(1)
+    scene = rng.integers(512, 13_495, 200_000)
+    spread = 13_495 + rng.integers(0, 6, 5_000)  # clipped, then offset per column by 0-5 DN
+    level = channel_clip_level(np.concatenate([scene, spread]).astype(np.uint16), 512, 16383)
+    assert 13_495 <= level <= 13_500  # its nearest neighbours are the pile itself: white was taken instead
