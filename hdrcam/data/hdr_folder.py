@@ -10,20 +10,20 @@ import numpy as np
 
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
-from hdrcam.io.exr import read_exr
+from hdrcam.io.exr import is_exr_file, read_exr
 
 HDR_SUFFIXES = (".exr", ".hdr")
 
 
 def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
-    """H x W x 3 float32 linear RGB from an EXR or Radiance file; NaN/Inf and negatives are refused/zeroed.
-    A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read
-    as grey, R = G = B = Y."""
+    """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance or float
+    TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images (display images) refused. A
+    luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read as
+    grey, R = G = B = Y."""
     path = Path(path)
-    if path.suffix.lower() not in HDR_SUFFIXES:
-        raise InputError(f"{path}: not an HDR image ({' or '.join(HDR_SUFFIXES)} holding linear radiance); an 8 or "
-                         "16-bit PNG, JPEG or TIFF is a display image, gamma-encoded and clipped")
-    if path.suffix.lower() == ".exr":
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.suffix.lower() == ".exr" or is_exr_file(path):
         exr = read_exr(path)
         image = exr.rgb() if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels) \
             else np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
@@ -31,7 +31,10 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
         with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
             image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:
-            raise InputError(f"{path}: cannot read as a Radiance HDR image")
+            raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
+        if image.dtype in (np.uint8, np.uint16):
+            raise InputError(f"{path}: {8 * image.dtype.itemsize}-bit pixels: a display image, gamma-encoded and "
+                             "clipped, not linear radiance; give an OpenEXR, Radiance .hdr or float TIFF")
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
     if not np.isfinite(image).all():
         raise InputError(f"{path}: image has NaN or Inf pixels")

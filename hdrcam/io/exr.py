@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -98,11 +99,21 @@ def read_exr(path: Path) -> ExrImage:
     return ExrImage(channels=channels, attributes=attributes, source=Path(path))
 
 
+EXR_MAGIC = b"\x76\x2f\x31\x01"
+_quieting = threading.Lock()  # sys.stdout is the process's: one reader at a time swaps it
+
+
+def is_exr_file(path: Path) -> bool:
+    """True for a file that begins with OpenEXR's magic number, whatever its name."""
+    with open(path, "rb") as handle:
+        return handle.read(4) == EXR_MAGIC
+
+
 @contextlib.contextmanager
 def _openexr_quiet():
     """OpenEXR's C library prints damaged chunks on file descriptor 2, and its Python binding a "Warning: Exception
     raised reading pixel data" on sys.stdout; read_exr reports the failure in one line of its own."""
-    with c_stderr_silenced(), contextlib.redirect_stdout(io.StringIO()):
+    with _quieting, c_stderr_silenced(), contextlib.redirect_stdout(io.StringIO()):
         yield
 
 

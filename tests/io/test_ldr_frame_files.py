@@ -46,7 +46,9 @@ def test_a_16_bit_frame_clipped_below_65535_is_warned_about(tmp_path):
         read_ldr_frame(tmp_path / "sixteen.png")  # white at 65535: no warning
 
 
-def test_an_8_bit_image_is_not_taken_as_an_hdr_scene(tmp_path):
+def test_an_8_bit_image_is_not_taken_as_an_hdr_scene_and_a_float_tiff_is(tmp_path):
     cv2.imwrite(str(tmp_path / "scene.png"), (_gradient() * 255).astype(np.uint8))
-    with pytest.raises(InputError, match="scene.png: not an HDR image"):
+    with pytest.raises(InputError, match="scene.png: 8-bit pixels: a display image"):
         read_hdr_image(tmp_path / "scene.png")
+    cv2.imwrite(str(tmp_path / "scene.tif"), cv2.cvtColor(_gradient() * 4000, cv2.COLOR_RGB2BGR))
+    assert np.allclose(read_hdr_image(tmp_path / "scene.tif"), _gradient() * 4000)
