@@ -93,15 +93,20 @@ def test_test_sets_that_cannot_be_scored_are_refused(options, message):
         hdrcam.evaluate_checkpoints(**options)
 
 
-def test_a_photograph_without_light_is_left_out_of_a_test_set_by_name(tmp_path):
-    from hdrcam.data.scenes import SceneSource
+def test_a_photograph_without_light_is_left_out_of_evaluate_by_name_and_the_others_keep_their_noise(tmp_path):
     from hdrcam.io.exr import write_exr
 
-    write_exr(tmp_path / "lens-cap.exr", np.zeros((64, 64, 3), np.float32))
-    write_exr(tmp_path / "lamp.exr", np.linspace(0, 1, 64 * 64 * 3, dtype=np.float32).reshape(64, 64, 3))
-    with pytest.warns(UserWarning, match=r"lens-cap\.exr: not a test scene"):
-        scenes = SceneSource(tmp_path).test_scenes(32, 0, 1)
-    assert [name for name, _ in scenes] == ["lamp"]
+    lamp = np.linspace(0, 1, 64 * 64 * 3, dtype=np.float32).reshape(64, 64, 3)
+    write_exr(tmp_path / "lamp.exr", lamp)
+    rows_alone, _ = hdrcam.evaluate_checkpoints(data=str(tmp_path), size_px=32)
+    write_exr(tmp_path / "a-lens-cap.exr", np.zeros((64, 64, 3), np.float32))  # sorted first: lamp moves to index 1
+    write_exr(tmp_path / "b-lamp.exr", lamp)
+    (tmp_path / "lamp.exr").unlink()
+    with pytest.warns(UserWarning, match="a-lens-cap: not scored"):  # the run failed: 'image has no light'
+        rows, _ = hdrcam.evaluate_checkpoints(data=str(tmp_path), size_px=32)
+    assert {row.image for row in rows} == {"b-lamp"}
+    ldr = [row.metrics["psnr_linear"] for row in rows + rows_alone if row.method == "ldr"]
+    assert ldr[0] != ldr[1]  # index 1's noise draw, not index 0's: the file kept its place
 
 
 def test_a_folder_given_as_a_frame_is_named_as_a_folder(tmp_path):

@@ -14,7 +14,6 @@ spreads into it through the PSF, as it does on a sensor; targets are the centre 
 from __future__ import annotations
 
 import math
-import warnings
 
 from pathlib import Path
 
@@ -24,7 +23,8 @@ from hdrcam.data.augment import undistorted_rows, white_balance_jitter
 from hdrcam.data.crops import rotate_flip, saturated_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
-from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, scale_to_clipped_fraction
+from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE,
+                                    scale_to_clipped_fraction)
 from hdrcam.errors import InputError
 
 PROCEDURAL = "procedural"
@@ -101,7 +101,7 @@ class SceneSource:
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
         """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1; each named
         (night-NNN, or the file's stem - its name where two files share a stem). A photograph without light in
-        its crop is left out with a warning naming it."""
+        its crop stays in its place unscaled (no pixel above 1)."""
         scenes = []
         if self.folder is None:
             for index in range(count):
@@ -116,8 +116,9 @@ class SceneSource:
                 name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
                 try:
                     scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
-                except InputError as error:  # no light: left out, as a photograph the protocol cannot scale is
-                    warnings.warn(f"{path}: not a test scene - {error}")
+                except InputError:  # no light to scale: kept unscaled in its place (evaluate leaves it out, as
+                    scenes.append((name, np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32)))  # it does any
+                    # photograph it cannot scale), so every later file keeps its index and noise seed
         return scenes
 
 
