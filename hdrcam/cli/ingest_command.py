@@ -8,7 +8,7 @@ from pathlib import Path
 from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder, settings_text
 from hdrcam.cli.arguments import positive_float
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_paths, check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs, write_text_atomic
 
 
 def register(commands) -> None:
@@ -35,7 +35,7 @@ def run(arguments: argparse.Namespace) -> int:
     manifests = [bracket_manifest(frames, out, {"ingested_from": str(arguments.folder)}) for frames in result.brackets]
     with atomic_paths(names, overwrite=arguments.overwrite) as temporaries:  # all of them, or none
         for temporary, manifest in zip(temporaries, manifests):
-            temporary.write_text(manifest.to_json(), encoding="utf-8")
+            write_text_atomic(temporary, manifest.to_json(), overwrite=True)  # an error names the file
     for path, frames, manifest in zip(names, result.brackets, manifests):
         exposures = ", ".join(frame.exposure_label for frame in manifest.frames)
         print(f"{path}: {len(frames)} frames, {settings_text(frames[0])}, exposures {exposures}")

@@ -110,7 +110,7 @@ def test_an_empty_sdio_answer_is_asked_again_then_the_handshake_goes_on_as_libgp
 @pytest.mark.parametrize("faults, message", [({"exposure_mode": 2}, "mode dial.*M"),
                                              ({"image_quality": 0x03}, "JPEG only.*RAW"),
                                              ({"iso_auto": True}, "ISO is on Auto"),
-                                             ({"drive_mode": 0x8337}, "drive mode is bracket.*Single Shooting"),
+                                             ({"drive_mode": 0x8337}, "drive mode is continuous bracket 0.3 EV.*Single Shooting"),
                                              ({"drive_mode": 0x00010002}, "drive mode is continuous")])
 def test_a_body_set_up_wrongly_is_refused_before_any_shot(faults, message):
     camera, body = emulated(**faults)
@@ -231,6 +231,7 @@ def test_data_left_on_the_pipe_by_a_killed_run_is_reset_away_at_open_session(tmp
     body.in_pipe.queue(bytes(range(256)) * 40)  # the middle of an image another process stopped reading
     with camera:
         assert any("reset the device" in line for line in camera.session.log)
+        assert camera.session.log.count("OpenSession after the reset: opened") == 1
         assert camera.capture(tmp_path, "f").raw.bayer_dn.shape == (48, 64)
 
 

@@ -115,8 +115,13 @@ PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
 
 FOCUS_MODE_NAMES = {1: "MF", 2: "AF-S", 3: "AF-A", 0x8004: "AF-C", 0x8005: "DMF", 0x8006: "AF-D"}
 SINGLE_SHOT_DRIVE = 1  # 0x5013's low 16 bits: one frame per press (newer bodies add high bits: 0x00010002 continuous)
-DRIVE_MODE_NAMES = {1: "single", 2: "continuous", 0x8003: "self-timer 10 s", 0x8004: "self-timer 2 s",
-                    0x8337: "bracket"}
+DRIVE_MODE_NAMES = {  # libgphoto2's config.c capture_mode table for Sony (low 16 bits)
+    1: "single", 2: "continuous", 0x8012: "continuous low speed", 0x8004: "self-timer 10 s",
+    0x8005: "self-timer 2 s", 0x8018: "white-balance bracket low", 0x8028: "white-balance bracket high",
+    **{code: f"continuous bracket {steps} EV" for code, steps in ((0x8337, 0.3), (0x8377, 0.7), (0x8311, 1.0),
+                                                                    (0x8321, 2.0), (0x8331, 3.0))},
+    **{code: f"single bracket {steps} EV" for code, steps in ((0x8336, 0.3), (0x8376, 0.7), (0x8310, 1.0),
+                                                                (0x8320, 2.0), (0x8330, 3.0))}}
 
 
 def name(code: int) -> str:

@@ -183,11 +183,12 @@ class PtpSession:
             try:
                 self.transact(Operation.OPEN_SESSION, session_id)
             except (ContainerError, ProtocolError, TransportTimeout) as error:  # another run's data still queued
-                self.log.append(f"OpenSession met {error}; reset the device and opened again")
+                self.log.append(f"OpenSession met {error}; reset the device")
                 self.transport.reset()
                 self.transport.clear_halts()
                 self._wait_for_idle("a device reset")
                 self.transact(Operation.OPEN_SESSION, session_id)
+                self.log.append("OpenSession after the reset: opened")
         except ResponseError as error:
             if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
                 raise
