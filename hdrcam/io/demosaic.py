@@ -9,7 +9,8 @@ frames with known truth; table in the README):
 - ``edge-aware``: OpenCV's edge-aware conversion (``COLOR_Bayer*2RGB_EA``); integer data only.
 - ``menon2007``: colour-demosaicing's DDFAPD with refinement (Menon, Andriani and Calvagno 2007), float or
   integer data; several times slower, and its import (colour-science) costs about a second. Its ringing at
-  sharp edges is clipped to the range of the measured samples (no negative light, nothing above the brightest).
+  sharp edges is clipped to the range of the measured samples (nothing below the lowest - for non-negative data
+  no negative light - and nothing above the brightest).
 
 Each sample is kept where it was measured; the output is float32 in the input's units. OpenCV and
 colour-demosaicing (and numpy) are imported on first use: the command line reads METHODS without them.

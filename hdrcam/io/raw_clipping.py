@@ -24,6 +24,8 @@ NEAREST_CONTRAST = 3.0  # this much: the noise peak of a flat, unclipped area (a
 # DN) stands far above the window's mean but hardly above its own neighbours (a ratio of 1 to 1.3); a clipped
 # sensor's pile-up stands far above them, even when a per-column offset after the clip spreads it over a few DN
 # (values on a coarser grid - 12-bit data in a 14-bit file - leave neighbours empty: the nearest occupied count)
+MIN_SIGNAL = 0.01  # of the black-to-white range: the largest sample of data whose own white is far below the
+# metadata's (10-bit data in 16-bit samples reaches 1.6 %); less is a dark frame's noise
 BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-up is compared with
 
 
@@ -43,11 +45,12 @@ def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: 
     When no sample reaches the top part of the black-to-white range at all, the white level may be far above
     what the sensor delivers (a DNG without WhiteLevel defaults to 2^bits - 1: 12-bit data in 16-bit samples),
     so a pile-up at the largest sample, found the same way below it, is taken instead - unless that sample is
-    at or below black (a frame with the lens cap on holds no light to clip)."""
+    within MIN_SIGNAL of black (a frame with the lens cap on holds no light to clip)."""
     level = _pile_up(samples_dn, black_dn, white_level_dn, at_ceiling_only=False)
     if level is None and samples_dn.size:
         largest = float(samples_dn.max())
-        if black_dn < largest and _below_top_part(largest, black_dn, white_level_dn):  # no light: no sensor white
+        if largest >= black_dn + MIN_SIGNAL * (white_level_dn - black_dn) and \
+                _below_top_part(largest, black_dn, white_level_dn):  # a dark frame's noise shows no sensor white
             level = _pile_up(samples_dn, black_dn, largest, at_ceiling_only=True)
     return float(white_level_dn) if level is None else level
 

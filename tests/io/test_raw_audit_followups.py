@@ -227,6 +227,8 @@ def test_a_lens_cap_frame_reads_as_black_and_a_black_level_above_the_data_is_ref
     capped = write_dng(tmp_path / "cap.dng", np.full((64, 96), 512, np.uint16))
     assert read_ldr_frame(capped).max() == 0.0  # was 0/0: NaN, two lines of error
     assert raw_summary(capped)["clipped_fraction"] == 0.0  # inspect called it 100 % clipped
+    dark = np.random.default_rng(2).integers(0, 2, (64, 96)).astype(np.uint16)  # black 0: noise reads 0 and 1 DN
+    assert read_ldr_frame(write_dng(tmp_path / "dark.dng", dark, black_dn=(0,) * 4, white_dn=4095)).max() < 0.01
     noisy = np.clip(np.round(512 + np.random.default_rng(1).normal(0, 384, (64, 96))), 0, 16383).astype(np.uint16)
     assert read_ldr_frame(write_dng(tmp_path / "iso204800.dng", noisy)).max() > 0  # read noise is no wrong black
     raw = sensor_dn(np.full((64, 96), 3000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
