@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"hdrcam: error: {error}")
         return EXIT_FAILURE
     warnings.formatwarning = lambda message, category, *rest: f"hdrcam: warning: {one_line(str(message))}\n"
-    name = f"hdrcam {arguments.command}"
+    name = f"hdrcam {getattr(arguments, 'command_name', arguments.command)}"  # with its action, as usage errors say
     try:
         with termination_signals_raised(), _stdout_guarded():
             status = int(arguments.run(arguments) or 0)

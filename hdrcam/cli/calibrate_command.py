@@ -36,7 +36,7 @@ def register(commands) -> None:
                      help="crop to the smallest size holding this fraction of every channel's energy")
     psf.add_argument("--overwrite", action="store_true")
     add_profile_option(psf)
-    psf.set_defaults(run=run)
+    psf.set_defaults(run=run, command_name="calibrate psf")
 
 
 def run(arguments: argparse.Namespace) -> int:

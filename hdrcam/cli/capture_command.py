@@ -50,7 +50,7 @@ def register(commands) -> None:
     simulation.add_argument("--hot-pixels", type=float, default=2e-5, metavar="FRACTION")
     simulation.add_argument("--exposure-error", type=float, default=0.02, metavar="FRACTION",
                             help="largest per-notch error of the true shutter time (default 0.02)")
-    parser.set_defaults(run=run)
+    parser.set_defaults(run=run, command_name="capture bracket")
 
 
 def ev_step_argument(text: str) -> float:

@@ -74,3 +74,9 @@ def test_inspect_into_a_closed_pipe_exits_1_with_one_line_and_no_second_error_at
         os.close(pipe)
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
     assert done.stderr.startswith("hdrcam inspect: error: standard output closed early (broken pipe")
+
+
+def test_runtime_errors_name_the_command_with_its_action_as_usage_errors_do(tmp_path, capsys):
+    assert main(["capture", "bracket", "--size", "64x48", "--psf", "dirac", "--stops", "100",
+                 "--out", str(tmp_path / "b")]) == 1
+    assert capsys.readouterr().err.startswith("hdrcam capture bracket: error: 100 exposures")
