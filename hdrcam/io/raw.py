@@ -204,6 +204,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
             _check_bayer(path, raw, tiff)
             tile = raw.raw_pattern[:2, :2].ravel()
             black = [float(b) for b in raw.black_level_per_channel]
+            _check_black_placement(path, black, tiff)
             other = raw.other
             if with_pixels:  # a read-only view of LibRaw's buffer, which it keeps alive (no copy)
                 bayer = raw.raw_image_visible
@@ -333,6 +334,18 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
 BAYER_TILES = ("RGGB", "BGGR", "GRBG", "GBRG")
 
 
+def _check_black_placement(path: Path, black_dn: list[float], tiff: "_TiffFacts") -> None:
+    """InputError for a DNG whose ActiveArea starts on an odd row or column and whose black level differs by
+    colour site: LibRaw then rounds the margin to an even one and places the sites' black levels on the wrong
+    sites (fused radiance 20x off on some, negative on others: measured), and hdrcam takes its levels."""
+    if any(origin % 2 for origin in tiff.active_area_origin) and max(black_dn) - min(black_dn) > 0.5:
+        raise InputError(f"{path}: its ActiveArea starts at row {tiff.active_area_origin[0]}, column "
+                         f"{tiff.active_area_origin[1]} (odd) and its black level differs by colour site "
+                         f"({', '.join(f'{b:g}' for b in black_dn)} DN): LibRaw places such levels on the wrong "
+                         "sites, so hdrcam cannot subtract them; convert the file with one black level, or crop "
+                         "its ActiveArea to an even origin")
+
+
 def _cfa_name(codes: np.ndarray) -> str:
     """What a DNG's rows x columns CFA pattern (colour codes, 0 R, 1 G, 2 B) is called: "Quad-Bayer" or
     "Nona-Bayer" when each colour of a 2 x 2 tile covers 2 x 2 or 3 x 3 pixels, "X-Trans" for a 6 x 6 pattern with
@@ -392,6 +405,7 @@ class _TiffFacts:
     cfa_repeat_dim: tuple[int, int] | None = None  # a DNG raw image's CFARepeatPatternDim (rows, columns)
     cfa_codes: tuple[int, ...] = ()  # its CFAPattern, row-major (0 R, 1 G, 2 B, ...)
     cfa_layout: int | None = None  # its CFALayout (1: a square grid; 2 to 9: staggered)
+    active_area_origin: tuple[int, int] = (0, 0)  # its ActiveArea's top row and left column
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -431,6 +445,8 @@ def _tiff_facts(path: Path) -> _TiffFacts:
                     facts.cfa_repeat_dim = tuple(int(n) for n in mosaic[33421].value)
                     facts.cfa_codes = tuple(mosaic[33422].value)
                 facts.cfa_layout = int(mosaic[50711].value) if 50711 in mosaic else None
+                if 50829 in mosaic:  # ActiveArea: top, left, bottom, right
+                    facts.active_area_origin = tuple(int(n) for n in tuple(mosaic[50829].value)[:2])
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:

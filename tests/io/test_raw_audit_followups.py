@@ -235,3 +235,14 @@ def test_a_lens_cap_frame_reads_as_black_and_a_black_level_above_the_data_is_ref
     above = write_dng(tmp_path / "above.dng", raw, black_dn=(9000,) * 4)
     with pytest.raises(InputError, match="black level is above its data"):
         read_ldr_frame(above)  # clamped to a black frame, exit 0
+
+
+@pytest.mark.parametrize("top, left", [(1, 0), (0, 1), (1, 1)])
+def test_per_site_black_levels_under_an_odd_active_area_origin_are_refused(tmp_path, top, left):
+    raw = sensor_dn(np.full((68, 100), 2000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
+    area = [(50829, "I", 4, (top, left, 64 + top, 96 + left), True)]
+    with pytest.raises(InputError, match="ActiveArea starts at .* black level differs by colour site"):
+        read_raw(write_dng(tmp_path / "odd.dng", raw, black_dn=(500, 540, 580, 520), extra_tags=area))
+    read_raw(write_dng(tmp_path / "even.dng", raw, black_dn=(500, 540, 580, 520),
+                       extra_tags=[(50829, "I", 4, (2, 0, 66, 96), True)]))  # an even origin reads
+    read_raw(write_dng(tmp_path / "one.dng", raw, extra_tags=area))  # one black level for all sites reads
