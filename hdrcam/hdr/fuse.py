@@ -88,8 +88,28 @@ def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[Ra
         if dark.bayer_dn.shape != frame.bayer_dn.shape:
             raise InputError(f"{dark.metadata.path}: dark frame of {dark.bayer_dn.shape[1]} x {dark.bayer_dn.shape[0]} "
                              f"px for frames of {frame.bayer_dn.shape[1]} x {frame.bayer_dn.shape[0]} px")
+        if np.array_equal(dark.bayer_dn, frame.bayer_dn):  # subtracted from itself, every pixel would be 0
+            raise InputError(f"{dark.metadata.path}: the dark frame for {frame.metadata.path.name} holds the same data "
+                             "as that light frame: give the dark frames (lens capped) with --darks, not the lights")
+        _warn_if_lit(dark)
         matched.append(dark)
     return matched
+
+
+DARK_LIT_LEVEL = 0.05  # of the black-to-white range above black: no dark current or hot pixel crowd reaches it
+DARK_LIT_FRACTION = 0.01  # of a dark frame's samples that high: it recorded light
+
+
+def _warn_if_lit(dark: RawFrame) -> None:
+    """Warn when a dark frame recorded light (more than DARK_LIT_FRACTION of its samples DARK_LIT_LEVEL of the
+    range above black): light frames given as darks, or an uncapped lens, would subtract the scene."""
+    black = float(np.max(dark.metadata.black_level_dn))
+    level = black + DARK_LIT_LEVEL * (dark.metadata.white_level_dn - black)
+    lit = float(np.mean(dark.bayer_dn[::4, ::4] > level))
+    if lit > DARK_LIT_FRACTION:
+        warnings.warn(f"{dark.metadata.path.name}, a dark frame, recorded light ({100 * lit:.1f} % of its samples "
+                      f"above {100 * DARK_LIT_LEVEL:g} % of white): light frames given as darks, or the lens was not "
+                      "capped? They are subtracted from the lights")
 
 
 def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,

@@ -282,3 +282,17 @@ def test_a_white_level_of_65535_that_nothing_confirms_is_warned_about():
         warnings.simplefilter("error")
         merged = merge_bayer(longer, PROFILE.camera, estimate_ratios=False)
     assert merged.clip_level_dn == 16383 - 512
+
+
+def test_lights_given_as_their_own_darks_are_refused_and_darks_that_recorded_light_are_warned_about(tmp_path):
+    import shutil
+
+    for name, scene in (("lights", "flat:0.3"), ("other", "flat:30")):  # folders of RAW files (a manifest
+        capture(tmp_path / f"{name}-bracket", scene, stops=2, size=(32, 32))  # would say 'light')
+        (tmp_path / name).mkdir()
+        for frame in (tmp_path / f"{name}-bracket").glob("*.dng"):
+            shutil.copy(frame, tmp_path / name / frame.name)
+    with pytest.raises(InputError, match="holds the same data as that light frame"):
+        fuse([tmp_path / "lights"], PROFILE.camera, darks=tmp_path / "lights")  # was a black image, exit 0
+    with pytest.warns(UserWarning, match="a dark frame, recorded light"):  # a shot of a brighter scene
+        fuse([tmp_path / "lights"], PROFILE.camera, darks=tmp_path / "other")
