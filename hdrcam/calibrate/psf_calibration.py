@@ -159,8 +159,11 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
         reasons = [f"{count} {reason}" for count, reason in (
             (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
             (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
+        spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
+        if spots and not clipped:  # sources clipped whole are masked out before detection: say so
+            reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
         raise InputError(f"no usable point source: {rejected} found - " + ", ".join(reasons) if rejected else
-                         "no point source found in the bracket")
+                         "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
     check_enough_samples(windows, size_px)
     fit = fit_effective_psf(windows, size_px)
     warn_negative_energy(fit)

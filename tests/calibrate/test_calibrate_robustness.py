@@ -93,3 +93,13 @@ def test_a_source_on_a_pixel_centre_gives_a_finite_fit_without_warnings():
         warnings.simplefilter("error")
         fit = fit_effective_psf([window], size)
     assert np.isfinite(fit.psf).all() and np.isfinite(fit.positions_px).all()
+
+
+def test_pinholes_clipped_whole_in_every_frame_are_named_as_clipped(tmp_path, capsys):
+    """Without a DOE a bright pinhole is clipped whole and masked out before detection: the error blamed the
+    frame's edge for the one noise peak it found."""
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "pinholes:1e9",
+                 "--psf", "dirac", "--stops", "3", "--ev-step", "3", *SIZE, "--out", str(tmp_path / "b")]) == 0
+    capsys.readouterr()
+    assert _calibrate(tmp_path / "b", tmp_path / "r") == 1
+    assert "spots clipped in every frame, not measurable (add a shorter exposure)" in capsys.readouterr().err
