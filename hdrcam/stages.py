@@ -275,7 +275,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         new_partner_run = {**new_run, **{field: trained[field] for field in PARTNER_SHARES if field in trained},
                            "preset": partner_state["preset"], "profile": partner_state["profile"],
                            "init_checkpoint": str(partner_start),
-                           "seed": trained.get("seed", _main_seed(seed, saved_config)) + 1}  # other batches
+                           "seed": (trained.get("seed", _main_seed(seed, saved_config)) + 1) % 2 ** 32}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
@@ -302,11 +302,14 @@ def finetuned_partner(out: str | Path) -> Path | None:
 
 
 def _saved_config(out: Path) -> dict | None:
-    """The config the run in ``out`` saved with its checkpoint, None before its first save."""
+    """The config the run in ``out`` saved with its checkpoint, else the config.json it wrote as it started (a run
+    stopped before its first checkpoint), None before either."""
     from hdrcam.train.checkpoint import read_checkpoint
 
-    saved = out / "checkpoint.pt"
-    return read_checkpoint(saved)["config"] if saved.is_file() else None
+    saved, claimed = out / "checkpoint.pt", out / "config.json"
+    if saved.is_file():
+        return read_checkpoint(saved)["config"]
+    return json.loads(claimed.read_text()) if claimed.is_file() else None
 
 
 def _main_seed(seed: int | None, saved_config: dict | None) -> int:

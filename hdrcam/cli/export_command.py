@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 from pathlib import Path
 
 from hdrcam.errors import InputError
@@ -27,7 +28,7 @@ def register(commands) -> None:
 
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.recon.export import export_onnx, export_torchscript
-    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, load_model, partner_checkpoint
 
     suffixes = SUFFIXES[arguments.format]
     if arguments.out.suffix.lower() not in suffixes:
@@ -42,6 +43,13 @@ def run(arguments: argparse.Namespace) -> int:
         export_onnx(model.network, arguments.out, metadata, overwrite=arguments.overwrite)
     else:
         export_torchscript(model.network, arguments.out, overwrite=arguments.overwrite)
+    partner = partner_checkpoint(Path(model.source))
+    if partner.is_file() and not Path(model.source).stem.endswith("-partner"):
+        warnings.warn(f"{model.source} has a partner, {partner.name}, which reconstruct runs beside it (keeping what "
+                      f"both paint); this export holds the checkpoint alone. Export the partner too, as "
+                      f"{partner_checkpoint(arguments.out).name} beside {arguments.out.name}, for the same results: "
+                      f"hdrcam export --checkpoint {partner} --format {arguments.format} --out "
+                      f"{partner_checkpoint(arguments.out)}")
     print(json.dumps({"format": arguments.format, "out": str(arguments.out), "checkpoint": str(model.source),
                       "bytes": arguments.out.stat().st_size}))
     return 0

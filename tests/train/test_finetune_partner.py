@@ -240,3 +240,22 @@ def test_finetune_refuses_a_black_training_photograph_by_name_before_writing_a_r
     assert main(_finetune(out, "--data", str(photographs))) == 1
     assert "lens-cap.exr: the photograph holds no light" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_largest_seed_finetunes_its_partner_with_the_seed_wrapped_to_zero(tmp_path):
+    out = tmp_path / "run"
+    assert main(_finetune(out, "--seed", str(2 ** 32 - 1))) == 0  # the partner's seed + 1 was refused after
+    assert json.loads((out / "partner" / "config.json").read_text())["seed"] == 0  # the main run had trained
+
+
+def test_a_run_stopped_before_its_first_checkpoint_tells_its_config_from_config_json(tmp_path):
+    from hdrcam.stages import _saved_config
+
+    (tmp_path / "config.json").write_text(json.dumps({"seed": 7, "init_checkpoint": "A/model.pt"}))
+    assert _saved_config(tmp_path) == {"seed": 7, "init_checkpoint": "A/model.pt"}  # was None: a resumed
+    assert _saved_config(tmp_path / "nothing") is None  # finetune then took the shipped checkpoint's partner
+
+
+def test_exporting_a_checkpoint_with_a_partner_says_how_to_export_the_partner(tmp_path):
+    with pytest.warns(UserWarning, match="has a partner, .*-partner.pt.*hdrcam export --checkpoint"):
+        assert main(["export", "--format", "torchscript", "--out", str(tmp_path / "m.pt")]) == 0
