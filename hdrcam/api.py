@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from hdrcam.errors import InputError
+from hdrcam.optics.psf_file import unit_sum_psf
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
@@ -30,21 +31,6 @@ MIN_TILE_PX = 16  # smallest window core: the network's multiple (a 1 px core ra
 
 class FrameError(InputError, ValueError):
     """A frame that is not a captured LDR frame (shape, NaN or Inf, values outside [0, 1])."""
-
-
-def unit_sum_psf(psf) -> np.ndarray:
-    """A (3, k, k) PSF as float32 with each channel summing to 1; InputError for one that is not an intensity
-    (NaN or Inf, negative values below -1e-3 of the channel's peak, an all-zero channel, another shape)."""
-    psf = np.asarray(psf, np.float64)
-    if psf.ndim != 3 or psf.shape[0] != 3 or psf.shape[1] != psf.shape[2] or psf.shape[1] == 0:
-        raise InputError(f"psf must be 3 x k x k (a channel each for R, G, B), got shape {psf.shape}")
-    if not np.isfinite(psf).all():
-        raise InputError("psf has NaN or Inf values")
-    peaks = psf.max(axis=(1, 2), keepdims=True)
-    if not (peaks > 0).all() or (psf < -1e-3 * peaks).any():
-        raise InputError("psf is not an intensity: a channel is all zero or has values below -1e-3 of its peak")
-    psf = np.clip(psf, 0.0, None)
-    return (psf / psf.sum(axis=(1, 2), keepdims=True)).astype(np.float32)
 
 
 @dataclasses.dataclass

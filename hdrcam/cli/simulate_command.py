@@ -40,7 +40,7 @@ def run(arguments: argparse.Namespace) -> int:
 
     from hdrcam.data.hdr_folder import read_hdr_image
     from hdrcam.data.night_scene import night_scene
-    from hdrcam.data.saturation import clipped_fraction, scale_to_clipped_fraction
+    from hdrcam.data.saturation import clipped_fraction, fraction_shortfall, scale_to_clipped_fraction
     from hdrcam.io.exr import write_exr
     from hdrcam.profiles import load_profile
     from hdrcam.train.checkpoint import load_model
@@ -78,10 +78,9 @@ def run(arguments: argparse.Namespace) -> int:
     frame = capture_scene(scene, psf, profile, arguments.seed)
     truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
     reached = clipped_fraction(truth)
-    if not arguments.clipped_fraction / 2 <= reached <= 2 * arguments.clipped_fraction:
-        warnings.warn(f"{arguments.scene}: {100 * reached:.3g} % of the scene's pixels exceed white, not the "
-                      f"{100 * arguments.clipped_fraction:g} % asked (a plateau at its brightest: saturated at "
-                      "source, or uniform)")
+    shortfall = fraction_shortfall(reached, arguments.clipped_fraction)
+    if shortfall:
+        warnings.warn(f"{arguments.scene}: scaled as asked, {shortfall}")
     attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}
     outputs = [(arguments.out, frame)] + ([(arguments.truth, truth)] if arguments.truth else [])
     with atomic_paths([path for path, _ in outputs], overwrite=arguments.overwrite) as temporaries:  # both, or none

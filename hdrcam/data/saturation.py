@@ -21,6 +21,15 @@ def clipped_fraction(radiance: np.ndarray) -> float:
     return float(np.mean(np.max(radiance, axis=-1) > 1.0))
 
 
+def fraction_shortfall(reached: float, asked: float) -> str | None:
+    """Why an image scaled to leave ``asked`` of its pixels above 1 left ``reached`` instead (outside half to
+    twice the asked fraction: a plateau at its brightest), or None when it came close enough."""
+    if asked / 2 <= reached <= 2 * asked:
+        return None
+    return (f"{100 * reached:.3g} % of its pixels exceed 1, not the {100 * asked:g} % asked (a plateau at its "
+            "brightest: saturated at source, or uniform)")
+
+
 def saturation_scale(radiance: np.ndarray, fraction: float) -> float:
     """The divisor that leaves ``fraction`` of the pixels of an H x W x 3 image above 1."""
     if not 0.0 < fraction < 1.0:

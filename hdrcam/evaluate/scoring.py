@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from hdrcam.api import reconstruct, resolve_partner
-from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction
+from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction, fraction_shortfall
 from hdrcam.data.scenes import SceneSource
 from hdrcam.errors import InputError
 from hdrcam.evaluate.metrics import all_metrics
@@ -79,10 +79,9 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
-        if not TEST_CLIPPED_FRACTION / 2 <= fraction <= 2 * TEST_CLIPPED_FRACTION:
-            warnings.warn(f"{name}: not scored - scaled as the protocol asks, {100 * fraction:.2f} % of its pixels "
-                          f"exceed 1, not {100 * TEST_CLIPPED_FRACTION:g} % (a plateau at its brightest: saturated "
-                          "at source, or uniform)")
+        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION)
+        if shortfall:
+            warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
             if progress:
                 progress.update()
             continue

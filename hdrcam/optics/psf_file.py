@@ -34,15 +34,22 @@ def load_psf(path: Path, *, pixel_pitch_m: float | None = None) -> np.ndarray:
             not abs(file_pitch_m / pixel_pitch_m - 1.0) <= PITCH_TOLERANCE:
         raise InputError(f"{path}: a PSF of {file_pitch_m * 1e6:.4g} um pixels, but the camera's are "
                          f"{pixel_pitch_m * 1e6:.4g} um; measure or simulate the PSF with this camera's profile")
-    psf = image.rgb().transpose(2, 0, 1).astype(np.float64)
-    if psf.shape[1] != psf.shape[2]:
-        raise InputError(f"{path}: a PSF must be square, got {psf.shape[1]} x {psf.shape[2]}")
+    return unit_sum_psf(image.rgb().transpose(2, 0, 1), source=str(path))
+
+
+def unit_sum_psf(psf, *, source: str = "psf") -> np.ndarray:
+    """A (3, k, k) PSF (a file's or an array a caller gives) as float32 with each channel summing to 1; InputError
+    naming ``source`` for one that is not an intensity: another shape, NaN or Inf, an all-zero channel, negative
+    values below -1e-3 of the channel's peak (tinier ones, a measured calibration's noise, are set to zero)."""
+    psf = np.asarray(psf, np.float64)
+    if psf.ndim != 3 or psf.shape[0] != 3 or psf.shape[1] != psf.shape[2] or psf.shape[1] == 0:
+        raise InputError(f"{source}: a PSF is square with a channel each for R, G, B (3 x k x k), got shape "
+                         f"{psf.shape}")
     if not np.isfinite(psf).all():
-        raise InputError(f"{path}: PSF has NaN or Inf values")
+        raise InputError(f"{source}: PSF has NaN or Inf values")
     peaks = psf.max(axis=(1, 2), keepdims=True)
-    if not (peaks > 0).all():
-        raise InputError(f"{path}: a PSF channel is all zero")
-    if (psf < -1e-3 * peaks).any():
-        raise InputError(f"{path}: PSF has negative values below -1e-3 of its peak; it is not an intensity")
+    if not (peaks > 0).all() or (psf < -1e-3 * peaks).any():
+        raise InputError(f"{source}: PSF is not an intensity: a channel is all zero or has values below -1e-3 of "
+                         "its peak")
     psf = np.clip(psf, 0.0, None)
     return (psf / psf.sum(axis=(1, 2), keepdims=True)).astype(np.float32)

@@ -134,6 +134,6 @@ def test_simulate_warns_when_a_scene_cannot_be_scaled_to_the_clipped_fraction_as
     from hdrcam.io.exr import write_exr
 
     write_exr(tmp_path / "uniform.exr", np.full((32, 32, 3), 0.3, np.float32))
-    with pytest.warns(UserWarning, match="0 % of the scene's pixels exceed white, not the 1.5 % asked"):
+    with pytest.warns(UserWarning, match="0 % of its pixels exceed 1, not the 1.5 % asked"):
         assert main(["simulate", str(tmp_path / "uniform.exr"), "--psf", "dirac", "--out",
                      str(tmp_path / "f.exr")]) == 0
