@@ -31,7 +31,6 @@ from hdrcam.io.raw_clipping import tiled
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
-BLACK_CHECK_STRIDE = 7  # every 7th row and column of each CFA position: the median of ~120k samples at 24 MP
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
@@ -105,14 +104,6 @@ def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> 
     if not scale_dn > 0:
         raise InputError(f"{frame.metadata.path}: its black level ({black_tile.max():g} DN) is not below its clip "
                          f"level ({frame.clip_level_tile_dn.min():g} DN): the file's levels are wrong")
-    for row in range(2):
-        for column in range(2):  # noise leaves half the samples of a dark frame at or above black, at any ISO
-            median_dn = float(np.median(frame.bayer_dn[row::2, column::2][::BLACK_CHECK_STRIDE, ::BLACK_CHECK_STRIDE]))
-            if median_dn < black_tile[row, column] - NEGATIVE_LDR_TOLERANCE * scale_dn:
-                raise InputError(f"{frame.metadata.path}: half of its samples lie more than "
-                                 f"{100 * NEGATIVE_LDR_TOLERANCE:g} % of white below its black level "
-                                 f"({black_tile[row, column]:g} DN; median {median_dn:g} DN): the file's black level "
-                                 "is above its data - check how it was made")
     signal_dn = np.clip(frame.bayer_dn.astype(np.float32) - tiled(black_tile, height, width), 0.0, scale_dn)
     if np.all(black_tile == np.round(black_tile)) and scale_dn == round(scale_dn) and scale_dn < 65536:
         signal_dn = signal_dn.astype(np.uint16)  # exact: OpenCV's integer demosaicing

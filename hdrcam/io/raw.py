@@ -146,9 +146,34 @@ RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer (uint16, kept: the frame is a view o
 
 
 def read_raw(path: str | Path) -> RawFrame:
-    """A RAW file's metadata and Bayer digital numbers."""
+    """A RAW file's metadata and Bayer digital numbers; InputError also for a black level above the data."""
     metadata, bayer = _read(Path(path), with_pixels=True)
+    _check_black_below_data(metadata, bayer)
     return RawFrame(metadata, bayer)
+
+
+BLACK_CHECK_STRIDE = 7  # every 7th row and column of each CFA position: the median of ~120k samples at 24 MP
+BLACK_ABOVE_DATA_TOLERANCE = 0.01  # of the black-to-white range: read noise is ~1e-4 of it at base ISO
+
+
+def _check_black_below_data(meta: RawMetadata, bayer_dn: np.ndarray) -> None:
+    """InputError when a CFA position's median lies more than BLACK_ABOVE_DATA_TOLERANCE of the black-to-white
+    range below its black level: noise leaves half the samples of any frame, a dark one included, at or above
+    black (ISO 25600-204800 checked), so the file's black level is above its data (black-subtracted data that
+    kept its BlackLevel tag) and every sample would be clamped to black."""
+    black_tile = meta.black_level_tile()
+    range_dn = meta.white_level_dn - float(black_tile.max())
+    if not range_dn > 0:  # levels that leave no range are refused where the clip level is known
+        return
+    for row in range(2):
+        for column in range(2):
+            samples = bayer_dn[row::2, column::2][::BLACK_CHECK_STRIDE, ::BLACK_CHECK_STRIDE]
+            median_dn = float(np.median(samples))
+            if median_dn < black_tile[row, column] - BLACK_ABOVE_DATA_TOLERANCE * range_dn:
+                raise InputError(f"{meta.path}: half of its samples lie more than "
+                                 f"{100 * BLACK_ABOVE_DATA_TOLERANCE:g} % of white below its black level "
+                                 f"({black_tile[row, column]:g} DN; median {median_dn:g} DN): the file's black level "
+                                 "is above its data - check how it was made")
 
 
 def sensor_fingerprint(meta: RawMetadata) -> tuple[tuple[str, str], ...]:

@@ -237,6 +237,18 @@ def test_a_lens_cap_frame_reads_as_black_and_a_black_level_above_the_data_is_ref
         read_ldr_frame(above)  # clamped to a black frame, exit 0
 
 
+def test_a_black_level_above_the_data_is_refused_when_the_frame_is_read_for_fuse_and_calibrate_too(tmp_path):
+    raw = sensor_dn(np.full((64, 96), 3000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
+    write_dng(tmp_path / "a.dng", raw, black_dn=(9000,) * 4, exposure_s=0.01)
+    write_dng(tmp_path / "b.dng", raw, black_dn=(512,) * 4, exposure_s=0.02)
+    with pytest.raises(InputError, match=r"a\.dng: .*black level is above its data"):
+        read_bracket([tmp_path])  # fuse and calibrate clamped every sample of a.dng to black and merged it
+    one_site = raw.copy()
+    one_site[1::2, 0::2] = 100  # one colour site's data below its black level of 512
+    with pytest.raises(InputError, match=r"median 100 DN"):
+        read_raw(write_dng(tmp_path / "site.dng", one_site))
+
+
 @pytest.mark.parametrize("top, left", [(1, 0), (0, 1), (1, 1)])
 def test_per_site_black_levels_under_an_odd_active_area_origin_are_refused(tmp_path, top, left):
     raw = sensor_dn(np.full((68, 100), 2000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
