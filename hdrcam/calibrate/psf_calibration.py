@@ -134,7 +134,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
         raise InputError(f"energy fraction {energy_fraction!r}: a fraction of the light, above 0 and at most 1")
     frames = read_bracket(sources)
     dark_frames = matching_darks(frames, darks)
-    merge = merge_bayer(frames, camera)  # darks find hot pixels; the annulus takes any dark offset out
+    merge = merge_bayer(frames, camera, scene_fills_frame=False)  # a bracket without sources is refused below
+    # darks find hot pixels; the annulus takes any dark offset out
     meta = frames[0].metadata
     height, width = merge.rate.shape
     noise = merge.noise

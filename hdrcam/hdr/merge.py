@@ -173,9 +173,12 @@ class _BracketStrips:
 
 
 def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFrame | None] | None = None,
-                estimate_ratios: bool = True, with_variance: bool = False, threads: int | None = None) -> BayerMerge:
+                estimate_ratios: bool = True, with_variance: bool = False, threads: int | None = None,
+                scene_fills_frame: bool = True) -> BayerMerge:
     """Inverse-variance merge of black-subtracted Bayer frames (shortest first), on ``threads`` threads
-    (default: one per core); ``with_variance``: also the variance of each merged rate."""
+    (default: one per core); ``with_variance``: also the variance of each merged rate. ``scene_fills_frame``
+    False for a point-source target (a pinhole through a bare lens lights a few hundred samples): no warning
+    that the longest frame recorded almost no light."""
     if len(frames) > MAX_FRAMES:
         raise InputError(f"{len(frames)} frames: a bracket of at most {MAX_FRAMES} merges (the usable-frame bit mask)")
     meta = frames[0].metadata
@@ -185,7 +188,8 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
     _warn_if_white_unconfirmed(frames[-1], white, black, clip_tile)
     noise = NoiseModel.from_camera(camera, iso, white, black)
-    _warn_if_no_light(frames[-1], black, noise)
+    if scene_fills_frame:
+        _warn_if_no_light(frames[-1], black, noise)
     darks = darks or [None] * len(frames)
     read_variance = noise.read_noise_dn ** 2 * (2.0 if any(d is not None for d in darks) else 1.0)
     notes: list[str] = []
