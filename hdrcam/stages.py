@@ -390,17 +390,17 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
     if device == "cuda" and not torch.cuda.is_available():
         raise InputError("--device cuda asked for, but torch sees no CUDA device")
     checkpoint, claimed = Path(out) / "checkpoint.pt", Path(out) / "config.json"
-    if resume and not checkpoint.is_file() and claimed.is_file():  # stopped before its first checkpoint: it
-        saved = TrainConfig.from_dict(json.loads(claimed.read_text()))  # starts again, with its own options
-        _forget_unsaved_run(Path(out))
-        config, resume = saved, False
+    restart = resume and not checkpoint.is_file() and claimed.is_file()  # stopped before its first checkpoint:
+    if restart:  # it starts again, with its own options
+        config, resume = TrainConfig.from_dict(json.loads(claimed.read_text())), False
     elif resume and checkpoint.is_file():
         config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
     else:
         config = TrainConfig(**new_run)
     config = dataclasses.replace(config, **given)  # checks the given fields as a new config would
-    return train(config, Path(out), resume=resume, vgg_weights=Path(vgg_weights) if vgg_weights else None,
-                 random_vgg=random_vgg, quiet=quiet, data_workers=data_workers,
+    return train(config, Path(out), resume=resume, restart=restart,
+                 vgg_weights=Path(vgg_weights) if vgg_weights else None, random_vgg=random_vgg, quiet=quiet,
+                 data_workers=data_workers,
                  device=None if device == "auto" else torch.device(device))  # auto: each torchrun rank its GPU
 
 

@@ -108,8 +108,12 @@ RUN_FILES = ("config.json", "log.jsonl", "checkpoint.pt", "model.pt", "psf.exr",
 
 def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: Path | None = None,
           random_vgg: bool = False, device: torch.device | None = None, quiet: bool = False,
-          stop_after: int | None = None, data_workers: int | None = None) -> dict:
+          stop_after: int | None = None, data_workers: int | None = None, restart: bool = False) -> dict:
     """Run (or continue) a training run in ``out``; returns the last logged step.
+
+    ``restart``: ``out`` holds a run stopped before its first checkpoint (its config.json, perhaps a log): it
+    starts again from step 0 there, config.json replaced only once the new run claims the folder (an interrupt
+    before that leaves the old one, so --resume still knows the run's options).
 
     ``stop_after`` N: checkpoint and return after N steps of this call (training in time slices; continue
     with ``resume``). ``data_workers``: CPU threads drawing scenes ahead of the step (the results do not
@@ -126,7 +130,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     check_memory(f"--batch {config.batch} of --crop {config.crop_px}",
                  config.batch * config.crop_px ** 2 * TRAIN_BYTES_PER_PIXEL, "use a smaller --batch or --crop")
     checkpoint_path = out / "checkpoint.pt"
-    if not resume and any((out / name).exists() for name in RUN_FILES):
+    if not resume and not restart and any((out / name).exists() for name in RUN_FILES):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     if config.precision == "float16" and device.type != "cuda":
         raise InputError("--precision float16 needs a CUDA device (loss scaling); use bfloat16 or float32")
@@ -170,7 +174,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         out.mkdir(parents=True, exist_ok=True)
         # a new run claims the folder with config.json (published without replacing: a second run started
         # into it at the same time fails here); the run's later files are its own
-        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n", overwrite=resume)
+        write_text_atomic(out / "config.json", json.dumps(config.as_dict(), indent=2) + "\n",
+                          overwrite=resume or restart)
         log_lines = _log_lines(out / "log.jsonl", start)
     progress = tqdm(total=min(config.steps, start + (stop_after or config.steps)) - start, desc=f"design {out.name}",
                     unit="step") if rank == 0 and not quiet else None

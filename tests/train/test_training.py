@@ -162,3 +162,25 @@ def test_float16_needs_cuda_and_unknown_precisions_are_refused(tmp_path):
         train(_tiny(precision="float16"), tmp_path / "run", quiet=True, device=torch.device("cpu"))
     with pytest.raises(InputError, match="precision must be one of"):
         _tiny(precision="float8")
+
+
+def test_a_restart_interrupted_before_it_claims_the_folder_keeps_the_runs_options(tmp_path, monkeypatch):
+    from hdrcam.cli import main
+    from hdrcam.train import design
+
+    run, steps = tmp_path / "run", design._train_steps
+
+    def interrupted(*arguments):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "_train_steps", interrupted)  # config.json written, no checkpoint yet
+    tiny = ["--steps", "2", "--crop", "32", "--batch", "1", "--psf", "dirac", "--device", "cpu"]
+    assert main(["design", *tiny, "--seed", "7", "--lr", "3e-4", "--out", str(run)]) == 130
+    monkeypatch.setattr(design, "_train_steps", steps)
+    monkeypatch.setattr(design.SceneSource, "check_training_folders", interrupted)  # before the new claim
+    assert main(["design", "--resume", "--out", str(run)]) == 130
+    assert json.loads((run / "config.json").read_text())["seed"] == 7  # it was deleted first: the options lost
+    monkeypatch.undo()
+    assert main(["design", "--resume", "--out", str(run)]) == 0
+    config = read_checkpoint(run / "model.pt")["config"]
+    assert (config["seed"], config["learning_rate"], config["steps"]) == (7, 3e-4, 2)
