@@ -8,6 +8,8 @@ import torch
 def centre_energy_fraction(psf: torch.Tensor, radius_px: int) -> torch.Tensor:
     """Energy in the (2r+1)^2 box about the axis (pixel S // 2) over the PSF's total, per channel."""
     size = psf.shape[-1]
+    if size < 2 * radius_px + 1:  # a negative start would slice from the far edge
+        raise ValueError(f"a {size} px PSF holds no {2 * radius_px + 1} px centre box")
     start = size // 2 - radius_px
     centre = psf[..., start:start + 2 * radius_px + 1, start:start + 2 * radius_px + 1]
     return centre.sum(dim=(-2, -1)) / psf.sum(dim=(-2, -1))

@@ -94,6 +94,10 @@ class OpticalSetup:
         check_wavelength_samples(samples, simulation.band_edges_m)
         bands = tuple(tuple(float(w) for w in band_wavelengths_m(edges, samples)) for edges in simulation.band_edges_m)
         size = psf_size_px or simulation.psf_size_px
+        if size < 2 * simulation.energy_centre_radius_px + 1:
+            raise InputError(f"PSF size {size} px: smaller than the {2 * simulation.energy_centre_radius_px + 1} px "
+                             f"centre whose energy {profile.name} reports and constrains (energy_centre_radius_px "
+                             f"{simulation.energy_centre_radius_px}); use a larger --psf-size")
         if simulation.propagation == "fraunhofer" and upsample is not None:
             raise InputError(f"upsample {upsample}: samples per pixel set the grid of the fresnel and "
                              f"angular_spectrum propagations; {profile.name}'s chirp-z (fraunhofer) propagation "

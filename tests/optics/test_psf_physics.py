@@ -187,3 +187,16 @@ def test_the_chirp_z_remedy_images_features_finer_than_a_pixel_grid_exactly():
     in_spot = lens[centre - half:centre + half + 1, centre - half:centre + half + 1].sum()
     assert in_order / in_spot == pytest.approx(np.sinc(1 / period_features) ** 2, abs=0.002)
     assert grating[centre - half:centre + half + 1, centre - half:centre + half + 1].sum() < 1e-3
+
+
+def test_a_psf_smaller_than_its_energy_centre_is_refused_not_misreported(tmp_path, capsys):
+    from hdrcam.cli import main
+    from hdrcam.optics.energy import centre_energy_fraction
+
+    assert float(centre_energy_fraction(torch.ones(1, 5, 5), 2)) == 1.0
+    with pytest.raises(ValueError, match="no 5 px centre box"):
+        centre_energy_fraction(torch.ones(1, 3, 3) / 9, 2)  # it gave 0.111: a negative start sliced the far edge
+    assert main(["psf", "--doe", "none", "--psf-size", "3", "--out", str(tmp_path / "p3")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "smaller than the 5 px centre" in error  # psf.json said 0.0093 in the centre
+    assert not (tmp_path / "p3").exists()
