@@ -31,7 +31,7 @@ def register(commands) -> None:
     parser.add_argument("--camera-rgb", action="store_true", help="keep camera RGB (no colour matrix)")
     parser.add_argument("--variance", action="store_true", help="add per-channel variance channels")
     parser.add_argument("--half", action="store_true",
-                        help="write half floats (refused for RGB above 65504; variances above it are stored as 65504)")
+                        help="write RGB as half floats (refused above 65504); variances stay float32")
     parser.add_argument("--compression", choices=("none", "zip"), default="none",
                         help="EXR compression (default none: fastest; zip: lossless, about a quarter smaller, slower)")
     parser.add_argument("--overwrite", action="store_true")
@@ -62,7 +62,7 @@ def run(arguments: argparse.Namespace) -> int:
     started = time.perf_counter()
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
                  with_variance=arguments.variance, demosaic_method=arguments.demosaic)
-    channels = image.exr_channels(half=arguments.half)
+    channels = image.exr_channels()
 
     def preview_png() -> bytes:
         upright = display_oriented(tonemap_rgb(reduced_for_preview(image.rgb, PREVIEW_SIDE_PX)), image.orientation)
@@ -72,7 +72,7 @@ def run(arguments: argparse.Namespace) -> int:
             exr_temporary, png_temporary):  # both published once both are written, or neither
         png = previewer.submit(preview_png)  # the EXR on this thread, where an interrupt discards it unfinished
         write_exr_channels(exr_temporary, channels, attributes=image.attributes(), half=arguments.half,
-                           overwrite=True, compression=arguments.compression)
+                           float32_channels=image.FLOAT32_CHANNELS, overwrite=True, compression=arguments.compression)
         write_bytes_atomic(png_temporary, png.result(), overwrite=True)
     seconds = time.perf_counter() - started
     merge = image.merge

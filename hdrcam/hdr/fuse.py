@@ -22,7 +22,6 @@ from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
-from hdrcam.io.exr import HALF_MAX
 from hdrcam.io.raw import RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
@@ -47,13 +46,15 @@ class FusedImage:
         pixels stay in the sensor's orientation. The first frame's."""
         return self.frame_metadata[0].orientation
 
-    def exr_channels(self, half: bool = False) -> dict[str, np.ndarray]:
-        """The EXR's channels: RGB, the clipped mask and, if computed, the variance. A variance is unknown (1e30
-        or more) where every frame clipped; with ``half`` every variance above the half range (65504, a standard
-        deviation of 256 relative units) is stored as 65504, so that the file can hold it."""
+    FLOAT32_CHANNELS = ("variance",)  # float32 even in a half-float EXR: variances span 1e-8 (a dim pixel of a
+    # long exposure, below half's smallest subnormal 6e-8) to 1e30 (unknown: clipped in every frame)
+
+    def exr_channels(self) -> dict[str, np.ndarray]:
+        """The EXR's channels: RGB, the clipped mask and, if computed, the variance (unknown, 1e30 or more,
+        where every frame clipped)."""
         channels = {"RGB": self.rgb, "clipped": self.clipped}
         if self.variance is not None:
-            channels["variance"] = np.minimum(self.variance, HALF_MAX) if half else self.variance
+            channels["variance"] = self.variance
         return channels
 
     def attributes(self) -> dict:

@@ -198,7 +198,8 @@ def write_exr(path: Path, pixels: np.ndarray, *, channel_names: tuple[str, ...] 
 
 
 def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attributes: dict[str, Any] | None = None,
-                       half: bool = False, overwrite: bool = False, compression: str = "zip") -> Path:
+                       half: bool = False, overwrite: bool = False, compression: str = "zip",
+                       float32_channels: tuple[str, ...] = ()) -> Path:
     """Write channels atomically as a scanline EXR.
 
     Each value is an H x W plane, or an H x W x 3 colour group written without a copy (OpenEXR reads the
@@ -207,7 +208,8 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
     default: smaller, and slower - about 4 s for 24 MP x 4 float32 channels on 2 cores) or "none" (about a
     third larger for noisy float data, written at disk speed); OpenEXR reads both in every version.
     ``attributes`` holds str, int or float values (floats are stored as 32-bit). ``half`` stores 16-bit floats
-    and raises InputError when a value exceeds the half range; non-finite values are refused.
+    (but the keys in ``float32_channels``) and raises InputError when a value exceeds the half range;
+    non-finite values are refused.
     """
     if compression not in COMPRESSIONS:
         raise ValueError(f"unknown EXR compression {compression!r}; choose from {', '.join(COMPRESSIONS)}")
@@ -220,11 +222,14 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
     highest = max((float(array.max()) for array in values), default=0.0)  # without a temporary the image's size
     if not (np.isfinite(lowest) and np.isfinite(highest)):
         raise InputError(f"{path}: refusing to write NaN or Inf values")
-    if half and max(highest, -lowest) > HALF_MAX:
-        raise InputError(f"{path}: values up to {max(highest, -lowest):.6g} exceed the half-float range "
-                         f"({HALF_MAX:g}); write float32 instead")
+    halved = {name for name, array in arrays.items() if half and array.dtype != bool and name not in float32_channels}
+    largest = max((float(np.abs(arrays[name]).max()) for name in halved if arrays[name].size), default=0.0)
+    if largest > HALF_MAX:
+        raise InputError(f"{path}: values up to {largest:.6g} exceed the half-float range ({HALF_MAX:g}); write "
+                         "float32 instead")
     pixels = {name: _half_mask(array) if array.dtype == bool
-              else np.ascontiguousarray(array, np.float16 if half else np.float32) for name, array in arrays.items()}
+              else np.ascontiguousarray(array, np.float16 if name in halved else np.float32)
+              for name, array in arrays.items()}
     header = {"compression": COMPRESSIONS[compression], "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
         value = value.item() if isinstance(value, np.generic) else value
