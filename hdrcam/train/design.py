@@ -42,6 +42,7 @@ from hdrcam.io.exr import write_exr
 from hdrcam.io.png import write_png
 from hdrcam.optics.energy import energy_regulariser
 from hdrcam.optics.heightmap import save_heightmap
+from hdrcam.optics.psf_file import PSF_UNITS
 from hdrcam.preview import line_plot, log_psf_rgb, radial_profile_plot, side_by_side
 from hdrcam.profiles import load_profile
 from hdrcam.recon.losses import reconstruction_loss
@@ -137,6 +138,9 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     if resume and not checkpoint_path.exists():
         raise InputError(f"--resume: {checkpoint_path} does not exist")
     check_destination_folder(out)  # before the model is built: an unusable --out fails at once
+    if restart:  # the options it started with, as a resume from a checkpoint checks them (steps may change:
+        # no step was saved, so no learning-rate schedule has begun)
+        _check_same_run(out / "config.json", json.loads((out / "config.json").read_text()), config)
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:
         steps = config.steps
@@ -293,7 +297,8 @@ def _write_results(out: Path, model: DesignModel, config: TrainConfig, log_lines
     state = checkpoint_state(model, config, config.steps)
     save_checkpoint(out / "model.pt", state)
     psf = state["psf"].numpy()
-    write_exr(out / "psf.exr", psf.transpose(1, 2, 0), channel_names=("R", "G", "B"), overwrite=True)
+    write_exr(out / "psf.exr", psf.transpose(1, 2, 0), channel_names=("R", "G", "B"), overwrite=True,
+              attributes={"pixel_pitch_m": load_profile(config.profile).camera.pixel_pitch_m, "units": PSF_UNITS})
     write_png(out / "psf.png", side_by_side([log_psf_rgb(psf), radial_profile_plot(psf)], height_px=384),
               overwrite=True)
     if state["doe"] is not None:

@@ -122,6 +122,12 @@ def test_fixed_psf_runs_train_only_the_network_and_load_back(tmp_path):
     assert np.allclose(model.psf, fixed_psf("dual-peak", load_profile("simulated")))
     assert read_checkpoint(tmp_path / "run" / "model.pt")["doe"] is None
     assert model.preset == "fast" and model.step == 2 and not model.network.training
+    from hdrcam.optics.psf_file import load_psf
+
+    pitch_m = load_profile("simulated").camera.pixel_pitch_m
+    np.testing.assert_allclose(load_psf(tmp_path / "run" / "psf.exr", pixel_pitch_m=pitch_m), model.psf, atol=1e-7)
+    with pytest.raises(InputError, match="pixel"):  # psf.exr had no pitch: any camera's check passed
+        load_psf(tmp_path / "run" / "psf.exr", pixel_pitch_m=pitch_m * 0.66)
 
 
 def test_damaged_checkpoints_are_one_line_errors(tmp_path):
@@ -181,6 +187,7 @@ def test_a_restart_interrupted_before_it_claims_the_folder_keeps_the_runs_option
     assert main(["design", "--resume", "--out", str(run)]) == 130
     assert json.loads((run / "config.json").read_text())["seed"] == 7  # it was deleted first: the options lost
     monkeypatch.undo()
+    assert main(["design", "--resume", "--seed", "4", "--out", str(run)]) == 1  # it restarted as seed 4
     assert main(["design", "--resume", "--out", str(run)]) == 0
     config = read_checkpoint(run / "model.pt")["config"]
     assert (config["seed"], config["learning_rate"], config["steps"]) == (7, 3e-4, 2)
