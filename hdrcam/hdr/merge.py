@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
-from hdrcam.hdr.exposure_ratios import estimate_exposures
+from hdrcam.hdr.exposure_ratios import NEIGHBOUR_ROWS, estimate_exposures
 from hdrcam.io.raw import RawFrame
 from hdrcam.io.raw_clipping import is_in_top_part, sensor_white_dn, tiled
 from hdrcam.parallel import strips, worker_threads
@@ -131,7 +131,7 @@ class _BracketStrips:
             if dark is not None and dark.bayer_dn.shape != (self.height, width):
                 raise InputError(f"{dark.metadata.path}: dark frame size {dark.bayer_dn.shape} differs from "
                                  f"{(self.height, width)}")
-        rows = min(STRIP_ROWS, self.height)
+        rows = min(STRIP_ROWS + 2 * NEIGHBOUR_ROWS, self.height)  # a strip and the ratio estimate's halo
         strips_of_black: dict[bytes, list[np.ndarray]] = {}  # one pair of strips per distinct black tile
         self.black = []  # per frame, per CFA row phase of a strip's first row
         for frame in frames:
