@@ -98,6 +98,7 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         return np.sum(list(pool.map(sums, row_strips)), axis=0)
 
     ratios, counts, refining = list(labelled), [0] * pairs, list(range(pairs))
+    unestimated: dict[int, str] = {}  # pair -> why its labelled ratio is used
     for _ in range(REFINEMENTS):
         bounds = {k: bound_dn(ratios[k]) for k in refining}
         outside = {k: bound for k, bound in bounds.items() if not bands[k][0] <= bound <= bands[k][1]}
@@ -108,17 +109,21 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
             totals[k] = below_band[k] + kept_totals[k]
         for k in list(refining):
             counts[k] = int(totals[k, 0])
-            if counts[k] < MIN_RATIO_SAMPLES or totals[k, 1] <= 0:
-                refining.remove(k)
+            if counts[k] < MIN_RATIO_SAMPLES:
+                unestimated[k] = f"only {counts[k]} pixels usable in both"
+            elif totals[k, 1] <= 0:
+                unestimated[k] = f"the shorter frame's {counts[k]} usable pixels hold no signal above black"
+            elif totals[k, 2] <= totals[k, 1]:  # no bound follows from a longer frame that is no brighter
+                unestimated[k] = (f"the longer frame is no brighter over {counts[k]} usable pixels (ratio "
+                                  f"{totals[k, 2] / totals[k, 1]:.4f})")
+            else:
+                ratios[k] = float(totals[k, 2] / totals[k, 1])
                 continue
-            ratios[k] = float(totals[k, 2] / totals[k, 1])
-            if ratios[k] <= 1.0:  # the longer frame no brighter: no bound follows from it; the label is used
-                refining.remove(k)
-    for k in range(pairs):
-        if counts[k] < MIN_RATIO_SAMPLES or ratios[k] <= 1.0:
-            notes.append(f"frames {k}-{k + 1}: only {counts[k]} pixels usable in both; using the labelled ratio "
-                         f"{labelled[k]:.4f}")
             ratios[k] = labelled[k]
+            refining.remove(k)
+    for k in range(pairs):
+        if k in unestimated:
+            notes.append(f"frames {k}-{k + 1}: {unestimated[k]}; using the labelled ratio {labelled[k]:.4f}")
         else:
             notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {counts[k]} pixels (labels say "
                          f"{labelled[k]:.4f})")

@@ -197,7 +197,14 @@ def test_a_longer_frame_that_is_no_brighter_keeps_the_labelled_ratio():
     with ThreadPoolExecutor(2) as pool:
         exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 15000.0, 3.0, notes, pool)
     assert exposures[1] / exposures[0] == pytest.approx(4.0)
-    assert "using the labelled ratio" in notes[0]
+    assert "longer frame is no brighter" in notes[0] and "using the labelled ratio" in notes[0]
+    shorter[:] = -1.0  # a shorter frame with no signal above black (its noise averages below it)
+    longer[:] = 400.0
+    notes.clear()
+    with ThreadPoolExecutor(2) as pool:
+        exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 15000.0, 3.0, notes, pool)
+    assert exposures[1] / exposures[0] == pytest.approx(4.0)
+    assert "no signal above black; using the labelled ratio" in notes[0]  # it read "ratio 4.0000 from 1280 pixels"
 
 
 def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
