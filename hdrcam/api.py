@@ -155,6 +155,12 @@ def load_network_model(path, *, vgg_weights=None):
 
         network = OnnxNetwork(Path(path))
         return TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, Path(path))
+    if path:
+        from hdrcam.train.checkpoint import read_checkpoint
+
+        if read_checkpoint(Path(path))["config"].get("psf") == "windshield":
+            raise InputError(f"{path}: a windshield network (design --psf windshield): it removes windshield streaks "
+                             f"(hdrcam destreak --method network --checkpoint {path}), not clipped highlights")
     return load_model(path, vgg_weights=vgg_weights)
 
 

@@ -19,14 +19,14 @@ import json
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import positive_int, random_seed
+from hdrcam.cli.arguments import non_negative_int, positive_int, random_seed
 from hdrcam.errors import OutputExistsError, StepFailed
 
 
 def register(commands) -> None:
     parser = commands.add_parser("demo", help="the whole chain on the simulated camera", description=__doc__)
     parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder (default demo-out)")
-    parser.add_argument("--finetune-steps", type=int, default=30, metavar="N",
+    parser.add_argument("--finetune-steps", type=non_negative_int, default=30, metavar="N",
                         help="fine-tuning steps of each network (the shipped one and its partner) on the measured "
                              "PSF; 0 reuses the shipped networks (default 30)")
     parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),

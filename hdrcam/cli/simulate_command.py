@@ -19,6 +19,9 @@ from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.train.choices import FIXED_PSFS
 
 
+NIGHT_SIZE_PX = (768, 1024)  # height, width of the procedural scene unless --size says otherwise
+
+
 def register(commands) -> None:
     parser = commands.add_parser("simulate", help="render what the camera records of an HDR scene",
                                  description=__doc__)
@@ -27,8 +30,9 @@ def register(commands) -> None:
     parser.add_argument("--checkpoint", type=Path, default=None, help="take PSF and profile from this checkpoint")
     parser.add_argument("--out", type=Path, required=True, help="the captured frame (EXR)")
     parser.add_argument("--truth", type=Path, default=None, help="also write the exposure-scaled scene here")
-    parser.add_argument("--size", type=positive_int, nargs=2, default=(768, 1024), metavar=("H", "W"),
-                        help="frame size of a procedural scene (default 768 1024)")
+    parser.add_argument("--size", type=positive_int, nargs=2, default=None, metavar=("H", "W"),
+                        help="frame size of the procedural 'night' scene (default 768 1024); a scene file keeps "
+                             "its own size")
     parser.add_argument("--clipped-fraction", type=positive_float, default=0.015)
     parser.add_argument("--seed", type=random_seed, default=0, help="scene and noise seed")
     parser.add_argument("--overwrite", action="store_true")
@@ -49,6 +53,9 @@ def run(arguments: argparse.Namespace) -> int:
 
     if not 0.0 < arguments.clipped_fraction < 1.0:
         raise InputError("--clipped-fraction must lie between 0 and 1")
+    if arguments.size is not None and arguments.scene != "night":
+        raise InputError(f"--size sets the procedural 'night' scene's frame; {arguments.scene} is captured at its "
+                         "own size (crop or resize the file instead)")
     outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
     inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
     inputs += [Path(arguments.psf)] if arguments.psf and arguments.psf not in FIXED_PSFS else []
@@ -64,7 +71,7 @@ def run(arguments: argparse.Namespace) -> int:
         psf = model.psf
     margin = psf.shape[-1] // 2
     if arguments.scene == "night":
-        height, width = arguments.size
+        height, width = arguments.size or NIGHT_SIZE_PX
         check_image_size("--size", height + 2 * margin, width + 2 * margin, CAPTURE_BYTES_PER_PIXEL,
                          "use a smaller --size")
         scene = night_scene(height + 2 * margin, width + 2 * margin, seed=arguments.seed, sources=40)

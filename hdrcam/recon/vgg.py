@@ -12,6 +12,7 @@ mean and deviation as torchvision's weights expect.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import torch
@@ -64,6 +65,17 @@ class Vgg19Features(nn.Module):
 
     def train(self, mode: bool = True) -> "Vgg19Features":
         return super().train(False)  # frozen: never in training mode
+
+
+def vgg_for_preset(preset, weights: Path | None, *, random_features: bool = False) -> Vgg19Features | None:
+    """The VGG-19 features a network preset needs (:func:`load_vgg19`), None for a preset without them; weights
+    given for such a preset are named as unused (a warning), not silently ignored."""
+    if preset.vgg_features:
+        return load_vgg19(weights, random_features=random_features)
+    if weights is not None:
+        warnings.warn(f"--vgg-weights {weights}: the {preset.name!r} preset has no VGG features; the weights are "
+                      "not used")
+    return None
 
 
 def load_vgg19(weights: Path | None = None, *, random_features: bool = False) -> Vgg19Features:

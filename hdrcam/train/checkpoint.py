@@ -22,7 +22,7 @@ from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
-from hdrcam.recon.vgg import load_vgg19
+from hdrcam.recon.vgg import vgg_for_preset
 
 CHECKPOINT_FORMAT = "hdrcam-checkpoint/1"
 SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "checkpoints" / "simulated-rank1-fast.pt"
@@ -87,7 +87,7 @@ def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
     path = Path(path) if path else SHIPPED_CHECKPOINT
     state = read_checkpoint(path)
     preset = preset_named(state["preset"])
-    vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
+    vgg = vgg_for_preset(preset, vgg_weights, random_features=random_vgg)
     network = ReconstructionNet(preset, vgg)
     missing, unexpected = network.load_state_dict(state["network"], strict=False)
     missing = [key for key in missing if not key.startswith("splitting.vgg.")]

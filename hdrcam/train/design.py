@@ -48,7 +48,7 @@ from hdrcam.profiles import load_profile
 from hdrcam.recon.losses import reconstruction_loss
 from hdrcam.recon.network import Reconstruction, ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
-from hdrcam.recon.vgg import load_vgg19
+from hdrcam.recon.vgg import vgg_for_preset
 from hdrcam.train.batches import BatchStream
 from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
 from hdrcam.train.config import TrainConfig
@@ -79,7 +79,7 @@ class DesignModel(nn.Module):
 def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
     profile = load_profile(config.profile)
     preset = preset_named(config.preset)
-    vgg = load_vgg19(vgg_weights, random_features=random_vgg) if preset.vgg_features else None
+    vgg = vgg_for_preset(preset, vgg_weights, random_features=random_vgg)
     if config.psf is not None:
         capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile),
                                  windshield=config.psf == "windshield")
