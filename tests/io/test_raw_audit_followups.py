@@ -258,3 +258,13 @@ def test_per_site_black_levels_under_an_odd_active_area_origin_are_refused(tmp_p
     read_raw(write_dng(tmp_path / "even.dng", raw, black_dn=(500, 540, 580, 520),
                        extra_tags=[(50829, "I", 4, (2, 0, 66, 96), True)]))  # an even origin reads
     read_raw(write_dng(tmp_path / "one.dng", raw, extra_tags=area))  # one black level for all sites reads
+
+
+def test_rows_zero_filled_on_the_card_are_refused_as_damage(tmp_path):
+    raw = sensor_dn(np.full((64, 96), 3000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
+    raw[40:52] = 0  # inside the file's length: its TIFF strips look whole (inspect and reconstruct took it)
+    with pytest.raises(InputError, match=r"damaged: 12 of its rows \(from row 40\) hold no sample"):
+        read_raw(write_dng(tmp_path / "zeroed.dng", raw))
+    raw[40:52] = 512 + np.random.default_rng(1).integers(-3, 4, (12, 96))  # a black stripe with noise is data
+    raw[45, :] = 512  # and so is one flat row at black
+    read_raw(write_dng(tmp_path / "dark-stripe.dng", raw))
