@@ -24,6 +24,7 @@ from hdrcam.capture.camera import CapturedFrame, ExposureSettings
 from hdrcam.capture.notches import ShutterNotch, iso_setting, nearest_shutter
 from hdrcam.capture.scene import Scene
 from hdrcam.colorimetry import SONY_A7_XYZ_TO_CAMERA, camera_from_srgb
+from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.io.dng import dng_bytes
 from hdrcam.io.raw import read_raw
@@ -168,6 +169,10 @@ def camera_irradiance(scene: Scene, psf: np.ndarray) -> np.ndarray:
     mixing = camera_from_srgb()
     for point in scene.points:
         _add_point(irradiance, psf, point.x_px, point.y_px, point.power * np.clip(mixing @ point.colour, 0.0, None))
+    if not np.isfinite(irradiance).all():  # float32 sums of the convolution overflow near 3.4e38
+        brightest = float(scene.radiance.max()) if scene.radiance is not None else 0.0
+        raise InputError(f"the scene's radiance (up to {brightest:.3g}) overflows the simulation's float32 "
+                         "arithmetic; scale the scene down (the exposure plan follows its brightness)")
     return np.clip(irradiance, 0.0, None)
 
 

@@ -107,3 +107,11 @@ def test_scene_specs():
         load_scene("moon", 4, 4)
     with pytest.raises(Exception, match="not a number"):
         load_scene("flat:x", 4, 4)
+
+
+def test_a_scene_too_bright_for_float32_is_one_line_not_a_traceback():
+    from hdrcam.capture.simulated import camera_irradiance
+
+    assert np.isfinite(camera_irradiance(load_scene("flat:1e33", 400, 600, seed=0), dirac(9))).all()
+    with pytest.raises(InputError, match="overflows the simulation's float32"):  # NaN reached rng.poisson: exit 3
+        camera_irradiance(load_scene("flat:1e34", 400, 600, seed=0), dirac(9))
