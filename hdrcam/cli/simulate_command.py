@@ -45,7 +45,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.data.hdr_folder import read_hdr_image
     from hdrcam.data.night_scene import night_scene
     from hdrcam.data.saturation import clipped_fraction, fraction_shortfall, scale_to_clipped_fraction
-    from hdrcam.io.exr import write_exr
+    from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr_attributes, write_exr
     from hdrcam.profiles import load_profile
     from hdrcam.train.checkpoint import load_model
     from hdrcam.limits import check_image_size
@@ -89,6 +89,8 @@ def run(arguments: argparse.Namespace) -> int:
     if shortfall:
         warnings.warn(f"{arguments.scene}: scaled as asked, {shortfall}")
     attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}
+    if arguments.scene != "night" and is_exr_file(Path(arguments.scene)):  # a fused image in a sensor's orientation
+        attributes["orientation"] = exr_orientation(read_exr_attributes(Path(arguments.scene)))
     outputs = [(arguments.out, frame)] + ([(arguments.truth, truth)] if arguments.truth else [])
     with atomic_paths([path for path, _ in outputs], overwrite=arguments.overwrite) as temporaries:  # both, or none
         for temporary, (_, pixels) in zip(temporaries, outputs):

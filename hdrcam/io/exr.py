@@ -64,6 +64,24 @@ class ExrImage:
         return next(iter(self.channels.values()))
 
 
+def exr_orientation(attributes: dict[str, Any]) -> int:
+    """The EXIF Orientation code (1 to 8) an EXR's ``orientation`` attribute gives its pixels (hdrcam writes one
+    on images kept in a sensor's orientation), 1 for none or another value."""
+    value = attributes.get("orientation")
+    return value if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 8 else 1
+
+
+def read_exr_attributes(path: Path) -> dict[str, Any]:
+    """An EXR's user attributes, from its header alone. InputError for a missing or damaged file."""
+    try:
+        with _openexr_quiet(), OpenEXR.File(io.BytesIO(Path(path).read_bytes()), header_only=True) as header_file:
+            header = dict(header_file.header())
+    except (RuntimeError, UnicodeDecodeError, ValueError, TypeError, OSError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})") from None
+    return {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
+
+
 def read_exr(path: Path) -> ExrImage:
     """Read an EXR file. Raises InputError for a missing, damaged or unsupported file."""
     path = Path(path)

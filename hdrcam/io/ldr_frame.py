@@ -25,7 +25,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
-from hdrcam.io.exr import is_exr_file, read_exr
+from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 
@@ -43,13 +43,15 @@ def read_ldr_frame(path: Path, demosaic_method: str = DEFAULT_METHOD) -> np.ndar
 
 def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_METHOD) -> tuple[np.ndarray, int]:
     """``read_ldr_frame``'s frame and the EXIF Orientation code (1 to 8) that displays it upright: a RAW file's
-    (its frame stays in the sensor's orientation), 1 for EXR, TIFF and PNG (taken as stored)."""
+    (its frame stays in the sensor's orientation), an EXR's ``orientation`` attribute (hdrcam's own outputs of
+    a RAW carry it), else 1 (TIFF and PNG are taken as stored)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
     suffix, orientation = path.suffix.lower(), 1
     if suffix == ".exr" or is_exr_file(path):
-        rgb = read_exr(path).rgb()
+        image = read_exr(path)
+        rgb, orientation = image.rgb(), exr_orientation(image.attributes)
     elif suffix in GAMMA_SUFFIXES:
         raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
                          "16-bit TIFF/PNG")

@@ -76,3 +76,18 @@ def test_reconstruct_of_a_raw_records_the_orientation_and_turns_its_previews(tmp
     preview_shape = (WIDTH, HEIGHT) if orientation == 6 else (HEIGHT, WIDTH)
     assert _png(out / "b.png").shape[:2] == preview_shape
     assert _png(out / "b-confidence.png").shape[:2] == preview_shape
+
+
+def test_an_exr_that_hdrcam_wrote_of_a_turned_camera_keeps_its_orientation_downstream(tmp_path):
+    from hdrcam.io.exr import write_exr
+    from hdrcam.io.ldr_frame import read_ldr_frame_and_orientation
+
+    frame = np.zeros((24, 40, 3), np.float32)
+    frame[:, :8] = 0.5
+    frame[3:6, 20:24] = 0.9
+    exr = write_exr(tmp_path / "frame.exr", frame, channel_names=("R", "G", "B"), attributes={"orientation": 6})
+    assert read_ldr_frame_and_orientation(exr)[1] == 6  # was 1: the reconstruction's previews lay sideways
+    assert read_ldr_frame_and_orientation(write_exr(tmp_path / "odd.exr", frame, attributes={"orientation": 9}))[1] == 1
+    scene = write_exr(tmp_path / "scene.exr", frame * 4.0, channel_names=("R", "G", "B"), attributes={"orientation": 8})
+    assert main(["simulate", str(scene), "--psf", "dirac", "--out", str(tmp_path / "sim.exr")]) == 0
+    assert read_exr(tmp_path / "sim.exr").attributes["orientation"] == 8  # was left out
