@@ -85,7 +85,7 @@ def run(arguments: argparse.Namespace) -> int:
     frame = capture_scene(scene, psf, profile, arguments.seed)
     truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
     reached = clipped_fraction(truth)
-    shortfall = fraction_shortfall(reached, arguments.clipped_fraction)
+    shortfall = fraction_shortfall(reached, arguments.clipped_fraction, truth.shape[0] * truth.shape[1])
     if shortfall:
         warnings.warn(f"{arguments.scene}: scaled as asked, {shortfall}")
     attributes = {"scene": arguments.scene, "seed": arguments.seed, "units": "relative to sensor white"}

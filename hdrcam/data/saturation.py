@@ -21,13 +21,15 @@ def clipped_fraction(radiance: np.ndarray) -> float:
     return float(np.mean(np.max(radiance, axis=-1) > 1.0))
 
 
-def fraction_shortfall(reached: float, asked: float) -> str | None:
-    """Why an image scaled to leave ``asked`` of its pixels above 1 left ``reached`` instead (outside half to
-    twice the asked fraction: a plateau at its brightest), or None when it came close enough."""
+def fraction_shortfall(reached: float, asked: float, pixels: int) -> str | None:
+    """Why an image of ``pixels`` pixels scaled to leave ``asked`` of them above 1 left ``reached`` instead
+    (outside half to twice the asked fraction: fewer pixels than one would make, or a plateau at its
+    brightest), or None when it came close enough."""
     if asked / 2 <= reached <= 2 * asked:
         return None
-    return (f"{100 * reached:.3g} % of its pixels exceed 1, not the {100 * asked:g} % asked (a plateau at its "
-            "brightest: saturated at source, or uniform)")
+    why = (f"{100 * asked:g} % of {pixels} pixels is less than one" if asked * pixels < 1 else
+           "a plateau at its brightest: saturated at source, or uniform")
+    return f"{100 * reached:.3g} % of its pixels exceed 1, not the {100 * asked:g} % asked ({why})"
 
 
 def saturation_scale(radiance: np.ndarray, fraction: float) -> float:

@@ -79,7 +79,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
-        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION)
+        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px)
         if shortfall:
             warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
             if progress:

@@ -225,3 +225,11 @@ def test_a_photograph_near_the_float32_limit_trains_finite_scenes(tmp_path):
     _write_exr(tmp_path / "huge.exr", image)
     scene = SceneSource(tmp_path).training_scene(32, 8, np.random.default_rng(0))
     assert np.isfinite(scene).all() and 0.009 <= clipped_fraction(scene[8:-8, 8:-8]) <= 0.031
+
+
+def test_a_shortfall_names_a_fraction_under_one_pixel_apart_from_a_plateau():
+    from hdrcam.data.saturation import fraction_shortfall
+
+    assert fraction_shortfall(0.016, 0.015, 100) is None
+    assert "1.5 % of 15 pixels is less than one" in fraction_shortfall(0.0, 0.015, 15)  # it said: a plateau
+    assert "a plateau at its brightest" in fraction_shortfall(0.2, 0.015, 10_000)
