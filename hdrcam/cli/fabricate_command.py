@@ -19,6 +19,10 @@ if TYPE_CHECKING:
     from hdrcam.optics.heightmap import FixedHeightMap
 
 
+MASKS_MARK = ("white = etch: mask_b_of_k etches 2^(b-1) steps into the plate's top surface (the highest level), so "
+              "each feature ends (levels - 1 - level) steps deep and the relief is the height map (heights above "
+              "the deepest etch); rows and columns as in heightmap.exr and the simulated PSF. A measured PSF turned "
+              "180 degrees from the simulated one means the plate was mounted face-reversed")
 MAX_LEVELS = 2 ** 16  # 16 binary masks; a level histogram of 2^40 bins alone would need 8 TB
 
 
@@ -73,6 +77,7 @@ def run(arguments: argparse.Namespace) -> int:
         "features": list(heights.shape), "h_max_m": profile.doe.h_max_m, "step_m": quantised.step_m,
         "max_height_m": float(quantised.heights_m.max()), "design_wavelength_m": wavelength,
         "mask_etch_depths_m": [quantised.step_m * 2 ** b for b in range(masks_count)],
+        "masks_mark": MASKS_MARK,
         "ideal_multilevel_efficiency": ideal_multilevel_efficiency(levels),
         "quantisation_strehl_at_design_wavelength": quantisation_strehl(heights, quantised.heights_m, phase_per_height),
         "level_histogram": np.bincount(quantised.level_index.ravel(), minlength=levels).tolist(),
@@ -123,6 +128,7 @@ def _markdown(report: dict) -> str:
              f"- {report['features'][0]} x {report['features'][1]} features at "
              f"{report['feature_pitch_m'] * 1e6:.3f} um",
              "- mask etch depths: " + ", ".join(f"{d * 1e9:.2f} nm" for d in report["mask_etch_depths_m"]),
+             f"- masks: {report['masks_mark']}",
              f"- design wavelength (h_max = one wave): {report['design_wavelength_m'] * 1e9:.1f} nm",
              f"- ideal {report['levels']}-level efficiency sinc^2(1/N): {report['ideal_multilevel_efficiency']:.4f}",
              f"- quantisation Strehl of this map: {report['quantisation_strehl_at_design_wavelength']:.4f}"]

@@ -1,8 +1,11 @@
 """Fabrication export: quantise a height map to 2^k levels and split it into k binary lithography masks.
 
 Level step = h_max / levels. Heights are rounded to the nearest level; a height that rounds to
-``levels`` steps (= h_max, a full 2 pi at the design wavelength) wraps to level 0. Mask b (b = 0..k-1)
-marks the features etched by 2^b steps, so the level of a feature is sum_b 2^b mask_b.
+``levels`` steps (= h_max, a full 2 pi at the design wavelength) wraps to level 0. A height map gives each
+feature's height above the deepest etch, so the plate's top surface is the highest level (levels - 1) and a
+feature of level L is etched (levels - 1 - L) steps deep. Mask b (b = 0..k-1) marks the features etched by 2^b
+steps: sum_b 2^b mask_b = levels - 1 - L (masks of the level bits themselves would etch the relief inverted,
+whose PSF is the design's turned 180 degrees).
 
 Efficiency estimates at the design wavelength (where h_max is 2 pi of phase):
 - ideal multilevel: sinc^2(1 / levels) (Swanson 1989), 0.987 for 16 levels;
@@ -24,9 +27,14 @@ class QuantisedHeightMap:
     level_index: np.ndarray  # int, 0..levels-1
     heights_m: np.ndarray  # level_index * step_m
 
+    def etch_steps(self) -> np.ndarray:
+        """Each feature's etch depth in steps below the top surface (the highest level): levels - 1 - level."""
+        return self.levels - 1 - self.level_index
+
     def masks(self) -> list[np.ndarray]:
-        """Binary masks, least significant first: mask b etches 2^b steps."""
-        return [((self.level_index >> bit) & 1).astype(bool) for bit in range(int(math.log2(self.levels)))]
+        """Binary etch masks, least significant first: True where mask b etches 2^b steps."""
+        depth = self.etch_steps()
+        return [((depth >> bit) & 1).astype(bool) for bit in range(int(math.log2(self.levels)))]
 
 
 def quantise_heightmap(heights_m: np.ndarray, h_max_m: float, levels: int) -> QuantisedHeightMap:

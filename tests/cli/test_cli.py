@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
@@ -89,6 +90,12 @@ def test_fabricate_masks_report_and_psf_of_the_quantised_doe(tmp_path, capsys):
     assert 0.95 < report["quantisation_strehl_at_design_wavelength"] <= 1.0
     assert max(report["psf_l1_difference_rgb"]) < 0.1
     assert sorted(p.name for p in (tmp_path / "f").glob("mask_*.png")) == [f"mask_{i}_of_4.png" for i in range(1, 5)]
+    assert report["masks_mark"].startswith("white = etch")
+    etched_steps = sum(2 ** (i - 1) * (cv2.imread(str(tmp_path / "f" / f"mask_{i}_of_4.png"), cv2.IMREAD_GRAYSCALE) > 0)
+                       for i in range(1, 5))
+    relief_m = (15 - etched_steps) * report["step_m"]  # what etching by the masks leaves above the deepest etch
+    quantised = read_exr(tmp_path / "f" / "heightmap_quantised.exr").channels
+    np.testing.assert_allclose(relief_m, next(iter(quantised.values())), atol=1e-12)  # was inverted: PSF turned 180
     # the quantised map is itself a DOE the PSF command accepts
     assert main(["psf", "--profile", "simulated", "--doe", str(tmp_path / "f" / "heightmap_quantised.exr"),
                  "--out", str(tmp_path / "q")]) == 0

@@ -20,12 +20,14 @@ def test_quantisation_rounds_to_levels_and_wraps_full_wave_to_zero():
     np.testing.assert_allclose(quantised.heights_m, quantised.level_index * step)
 
 
-def test_masks_add_up_to_the_level_index():
+def test_etch_masks_add_up_to_each_features_depth_below_the_top_surface():
     rng = np.random.default_rng(1)
     quantised = quantise_heightmap(rng.uniform(0, H_MAX, (40, 40)), H_MAX, 16)
     masks = quantised.masks()
     assert len(masks) == 4 and all(mask.dtype == bool for mask in masks)
-    np.testing.assert_array_equal(sum((2 ** b) * m.astype(int) for b, m in enumerate(masks)), quantised.level_index)
+    etched = sum((2 ** b) * m.astype(int) for b, m in enumerate(masks))
+    np.testing.assert_array_equal(etched, 15 - quantised.level_index)  # the highest level is not etched at all
+    np.testing.assert_allclose((15 - etched) * quantised.step_m, quantised.heights_m)  # relief = the height map
 
 
 def test_out_of_range_or_non_finite_heights_are_refused():
