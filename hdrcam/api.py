@@ -23,10 +23,9 @@ from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.mirror_agreement import mirror_agreed, mirrored_region, psf_mirror
 from hdrcam.recon.network_agreement import judge_pair
 from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
-from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX, MIN_TILE_PX
 
 FRAME_RANGE_SLACK = 0.01  # black-level noise and demosaicing overshoot just outside [0, 1] are clipped, not refused
-MIN_TILE_PX = 16  # smallest window core: the network's multiple (a 1 px core ran for minutes on 96 x 96)
 
 
 class FrameError(InputError, ValueError):

@@ -46,6 +46,11 @@ def non_negative_int(text: str) -> int:
     return _int_at_least(text, 0)
 
 
+def int_at_least(minimum: int):
+    """An argparse type: an integer of at least ``minimum``."""
+    return lambda text: _int_at_least(text, minimum)
+
+
 def _int_at_least(text: str, minimum: int) -> int:
     try:
         value = int(text)

@@ -127,6 +127,8 @@ def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
     networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint, "
                 "except where strong streaks bear one out)" if partner else f"Network: `{checkpoint}`")
+    finetuned = ("`4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and run partner/), "
+                 if checkpoint.parent.name == "4-finetune" else "")
     return f"""# hdrcam demo
 
 The whole chain on the simulated camera, {seconds} s in all. {networks}.
@@ -148,7 +150,6 @@ All three previews share the truth's exposure. The measured PSF (L1 against the 
 
 Where things are: `design-psf.exr` (the PSF of the designed DOE, which the simulated camera sees),
 `1-calibration-bracket/` (RAW frames + bracket.json + darks), `2-calibration-fused.exr`, `3-calibration/`
-(psf.exr, record.json, psf.png), `4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and
-run partner/), `5-night-frame.exr` and `5-night-truth.exr`, `6-reconstruction/` (HDR EXR with an
-`unreliable` mask channel, preview PNG).
+(psf.exr, record.json, psf.png), {finetuned}`5-night-frame.exr` and `5-night-truth.exr`, `6-reconstruction/`
+(HDR EXR with an `unreliable` mask channel, preview PNG).
 """

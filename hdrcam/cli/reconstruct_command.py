@@ -13,11 +13,11 @@ import time
 import warnings
 from pathlib import Path
 
-from hdrcam.cli.arguments import compute_device, positive_int
+from hdrcam.cli.arguments import compute_device, int_at_least, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_paths, check_writable, same_file_key
 from hdrcam.io.demosaic import DEFAULT_METHOD, METHODS
-from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX
+from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX, MIN_TILE_PX
 
 
 def register(commands) -> None:
@@ -46,8 +46,8 @@ def register(commands) -> None:
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="one network pass instead of two (the frame and its mirror image, keeping only what "
                              "both paint): half the network time, more invented highlights (see README)")
-    parser.add_argument("--tile", type=positive_int, default=DEFAULT_CORE_PX, metavar="PX",
-                        help=f"largest tile core (default {DEFAULT_CORE_PX}; bounds memory)")
+    parser.add_argument("--tile", type=int_at_least(MIN_TILE_PX), default=DEFAULT_CORE_PX, metavar="PX",
+                        help=f"largest tile core, at least {MIN_TILE_PX} (default {DEFAULT_CORE_PX}; bounds memory)")
     parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
                         help=f"tile context per side (default {DEFAULT_HALO_PX})")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))

@@ -46,3 +46,9 @@ def test_vgg_weights_for_a_preset_without_vgg_are_named_as_unused(tmp_path):
     with pytest.warns(UserWarning, match="has no VGG features; the weights are not used"):
         model = load_model(None, vgg_weights=tmp_path / "missing-vgg19.pth")
     assert model.preset == "fast"
+
+
+def test_reconstruct_refuses_a_tile_below_16_px_before_loading_anything(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:  # it was refused after the model loaded, beside a progress bar
+        main(["reconstruct", str(tmp_path / "frame.exr"), "--tile", "8", "--out", str(tmp_path / "r")])
+    assert stop.value.code == 2 and "--tile: must be at least 16" in capsys.readouterr().err

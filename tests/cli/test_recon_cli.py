@@ -161,8 +161,17 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
     for name in ("index.md", "3-calibration/psf.exr", "4-finetune/model.pt", "6-reconstruction/5-night-frame.exr",
                  "preview-reconstruction.png", "2-calibration-fused.exr"):
         assert (out / name).is_file(), name
+    assert "`4-finetune/` (model.pt" in (out / "index.md").read_text()
     assert main(["demo", "--out", str(out)]) == 1  # never overwrites a finished demo
     _one_line_error(capsys, "not empty")
+
+
+def test_the_demo_index_lists_no_finetune_folder_when_none_was_made():
+    from hdrcam.cli.demo_command import _index
+
+    scores = {"ldr": {"psnr_linear": 30.0, "pu21_psnr": 20.0, "psnr_mu": 25.0}}
+    index = _index(scores, {"capture": 1.0}, 10.0, SHIPPED_CHECKPOINT, [0.01, 0.02, 0.03], None)
+    assert "4-finetune" not in index  # --finetune-steps 0 listed a folder it never made
 
 
 def test_exports_agree_with_the_torch_path(night_frame, tmp_path, capsys):
