@@ -204,11 +204,11 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
         raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
     if init is not None and not Path(init).is_file():
         raise InputError(f"--init {init} does not exist")
-    given = _given(preset=preset, profile=profile, data=data, steps=steps, batch=batch, crop_px=crop_px,
-                   learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
-                   channels_last=channels_last, init_checkpoint=str(init) if init is not None else None)
+    given = _given(preset=preset, profile=_absolute_if_file(profile), data=data, steps=steps, batch=batch,
+                   crop_px=crop_px, learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every,
+                   precision=precision, channels_last=channels_last, init_checkpoint=_absolute_if_file(init))
     if psf:
-        given.update(psf=str(psf), doe=None)
+        given.update(psf=_absolute_if_file(psf), doe=None)
     elif doe:
         given.update(doe=doe, psf=None)
     return _train(out, {"steps": 1000}, given, resume=resume, vgg_weights=vgg_weights, random_vgg=random_vgg,
@@ -242,7 +242,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     from hdrcam.train.design import RUN_FILES
 
     out = Path(out)
-    start = Path(checkpoint) if checkpoint else SHIPPED_CHECKPOINT
+    start = Path(checkpoint).resolve() if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
     if Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
         raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
@@ -262,7 +262,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
                "init_checkpoint": str(start), "learning_rate": 2e-4}
     options = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                      checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                     psf=str(psf))
+                     psf=_absolute_if_file(psf))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
                "data_workers": data_workers}
     last = _train(out, new_run, {**options, **_given(init_checkpoint=str(start) if checkpoint else None)},
@@ -369,6 +369,14 @@ def _forget_unsaved_run(folder: Path) -> None:
             (folder / name).unlink(missing_ok=True)
     if dist.is_available() and dist.is_initialized():
         dist.barrier()
+
+
+def _absolute_if_file(value: str | Path | None) -> str | None:
+    """A file option as the run records it: an existing file's absolute path (a resume from another folder finds
+    it), else the value as given (a name such as dirac, or None)."""
+    if value is None:
+        return None
+    return str(Path(value).resolve()) if Path(value).is_file() else str(value)
 
 
 def _given(**fields) -> dict:

@@ -51,6 +51,7 @@ from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import vgg_for_preset
 from hdrcam.train.batches import BatchStream
 from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
+from hdrcam.train.choices import FIXED_PSFS
 from hdrcam.train.config import TrainConfig
 from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
 
@@ -76,18 +77,23 @@ class DesignModel(nn.Module):
         return output, centre_fraction, ldr
 
 
-def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool) -> DesignModel:
+def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool, saved: dict | None = None
+                ) -> DesignModel:
+    """The run's optics and network; ``saved``: the checkpoint it resumes from, whose weights replace the
+    initial ones (the init checkpoint is not read: it may have moved) and whose PSF stands in for a PSF file
+    that is no longer where the run found it (a run folder copied to another machine)."""
     profile = load_profile(config.profile)
     preset = preset_named(config.preset)
     vgg = vgg_for_preset(preset, vgg_weights, random_features=random_vgg)
     if config.psf is not None:
-        capture = OpticalCapture(profile, psf=fixed_psf(config.psf, profile),
-                                 windshield=config.psf == "windshield")
+        moved = saved is not None and config.psf not in FIXED_PSFS and not Path(config.psf).is_file()
+        psf = saved["psf"].numpy() if moved else fixed_psf(config.psf, profile)
+        capture = OpticalCapture(profile, psf=psf, windshield=config.psf == "windshield")
     else:
         capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)
     torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
     network = ReconstructionNet(preset, vgg)
-    if config.init_checkpoint:
+    if config.init_checkpoint and saved is None:
         state = read_checkpoint(Path(config.init_checkpoint))
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
@@ -144,7 +150,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:
         steps = config.steps
-        _check_same_run(checkpoint_path, saved["config"], config)
+        _check_same_run(checkpoint_path, saved["config"], config, saved_psf=saved["psf"])
         config = TrainConfig.from_dict(saved["config"])
         if steps < config.steps:  # the learning-rate schedule decays over the run's steps: it may only grow
             raise InputError(f"--steps {steps}: {out} is a run of {config.steps} steps; on --resume --steps may only "
@@ -153,7 +159,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
 
     source = SceneSource(config.data)
     source.check_training_folders()
-    model = build_model(config, vgg_weights, random_vgg).to(device)
+    model = build_model(config, vgg_weights, random_vgg, saved).to(device)
     optimizer = torch.optim.Adam([
         {"params": [p for p in model.network.parameters() if p.requires_grad], "lr": config.learning_rate,
          "base_lr": config.learning_rate},
@@ -238,13 +244,45 @@ def _train_steps(config: TrainConfig, out: Path, model: DesignModel, trained: nn
     return last
 
 
-def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig) -> None:
-    """Refuse to resume a run with other settings (seed, PSF, learning rate, ...): only ``steps`` may grow."""
+FILE_OPTIONS = ("psf", "init_checkpoint", "profile")  # run options that may name a file
+
+
+def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
+                    saved_psf: torch.Tensor | None = None) -> None:
+    """Refuse to resume a run with other settings (seed, PSF, learning rate, ...): only ``steps`` may grow. A file
+    is the same however its path is spelled (relative to another folder, absolute) and wherever a byte-identical
+    copy lies; a PSF file given where the run's own is gone, when it holds the checkpoint's ``saved_psf``."""
     wanted, saved = config.as_dict(), TrainConfig.from_dict(saved).as_dict()
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
+        if key in FILE_OPTIONS and _same_file(saved.get(key), wanted.get(key)):
+            continue
+        if key == "psf" and saved_psf is not None and _moved_psf_file(saved.get(key), wanted.get(key)):
+            profile = load_profile(wanted["profile"])
+            if not torch.allclose(torch.from_numpy(fixed_psf(wanted[key], profile)), saved_psf, rtol=1e-5, atol=1e-8):
+                raise InputError(f"--psf {wanted[key]}: not the PSF {checkpoint_path.parent.name} trained behind so "
+                                 "far (its own file is gone); resume needs the same PSF")
+            continue
         if saved.get(key) != wanted.get(key):
             raise InputError(f"--resume: {checkpoint_path} was started with {key} {saved.get(key)!r}, this run asks "
                              f"for {wanted.get(key)!r}; resume with the run's own options, or choose another --out")
+
+
+def _moved_psf_file(saved: str | None, wanted: str | None) -> bool:
+    """Whether a run's PSF file is gone from where it was and another PSF file is given in its place."""
+    files = [psf for psf in (saved, wanted) if psf is not None and psf not in FIXED_PSFS]
+    return len(files) == 2 and not Path(saved).is_file() and Path(wanted).is_file()
+
+
+def _same_file(saved: str | None, wanted: str | None) -> bool:
+    """Whether two spellings of a file option name the same file: equal, resolving to one path, or two files of
+    identical bytes (a copy moved with its run)."""
+    if saved == wanted:
+        return True
+    if saved is None or wanted is None or not Path(wanted).is_file():
+        return False
+    if Path(saved).is_file():
+        return Path(saved).resolve() == Path(wanted).resolve() or Path(saved).read_bytes() == Path(wanted).read_bytes()
+    return False
 
 
 def _maybe_distributed(model: nn.Module, world: int, device: torch.device) -> nn.Module:

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from hdrcam.errors import InputError
+from hdrcam.io.exr import read_exr, write_exr
 from hdrcam.optics.analytic import dirac, star
 from hdrcam.optics.energy import energy_regulariser
 from hdrcam.profiles import load_profile
@@ -191,3 +192,44 @@ def test_a_restart_interrupted_before_it_claims_the_folder_keeps_the_runs_option
     assert main(["design", "--resume", "--out", str(run)]) == 0
     config = read_checkpoint(run / "model.pt")["config"]
     assert (config["seed"], config["learning_rate"], config["steps"]) == (7, 3e-4, 2)
+
+
+def test_a_run_resumes_from_another_folder_and_after_its_files_moved(tmp_path, monkeypatch, capsys):
+    import shutil
+    from pathlib import Path
+
+    from hdrcam.cli import main
+    from hdrcam.train import design
+
+    measured = Path(__file__).resolve().parents[2] / "calibration" / "simulated-rank1" / "psf.exr"
+    for folder in ("a", "b", "c"):
+        (tmp_path / folder).mkdir()
+    shutil.copyfile(measured, tmp_path / "a" / "psf.exr")
+    train_slice = design.train
+
+    def stopped_after_a_checkpoint(config, folder, **options):
+        train_slice(config, folder, **options, stop_after=1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "train", stopped_after_a_checkpoint)
+    monkeypatch.chdir(tmp_path / "a")
+    run, tiny = tmp_path / "run", ["--steps", "2", "--crop", "32", "--batch", "1", "--device", "cpu"]
+    assert main(["design", "--psf", "psf.exr", *tiny, "--out", str(run)]) == 130
+    monkeypatch.setattr(design, "train", train_slice)
+    moved, gone, other = tmp_path / "moved", tmp_path / "gone", tmp_path / "other"
+    for copy in (moved, gone, other):
+        shutil.copytree(run, copy)
+    monkeypatch.chdir(tmp_path / "b")  # the PSF spelled from another folder is the same file
+    assert main(["design", "--resume", "--psf", "../a/psf.exr", "--out", str(run)]) == 0  # was: another psf
+    (tmp_path / "a" / "psf.exr").rename(tmp_path / "c" / "psf.exr")
+    assert main(["design", "--resume", "--psf", "../c/psf.exr", "--out", str(moved)]) == 0  # the same bytes
+    resumed, moved_run = read_checkpoint(run / "model.pt")["network"], read_checkpoint(moved / "model.pt")["network"]
+    assert all(torch.equal(resumed[key], moved_run[key]) for key in resumed)  # both continued the same run
+    (tmp_path / "c" / "psf.exr").unlink()
+    assert main(["design", "--resume", "--out", str(gone)]) == 0  # the checkpoint's PSF stands in for the file
+    flipped = read_exr(measured)
+    write_exr(tmp_path / "c" / "flipped.exr", flipped.rgb()[::-1].copy(), channel_names=("R", "G", "B"),
+              attributes={key: value for key, value in flipped.attributes.items() if key == "pixel_pitch_m"})
+    capsys.readouterr()
+    assert main(["design", "--resume", "--psf", "../c/flipped.exr", "--out", str(other)]) == 1  # another PSF
+    assert "not the PSF other trained behind so far (its own file is gone)" in capsys.readouterr().err
