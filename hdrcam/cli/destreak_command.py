@@ -18,7 +18,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import compute_device
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_paths, check_outputs
+from hdrcam.io.atomic import atomic_paths, check_outputs_of_inputs
 
 SHIPPED_WINDSHIELD = Path(__file__).resolve().parent.parent / "checkpoints" / "windshield-fast.pt"
 
@@ -58,8 +58,7 @@ def run(arguments: argparse.Namespace) -> int:
     if network and read_checkpoint(checkpoint)["config"].get("psf") != "windshield":
         raise InputError(f"{checkpoint} was not trained on windshield streaks (design --psf windshield)")
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
-    check_outputs([path for pair in outputs for path in pair], overwrite=arguments.overwrite,
-                  inputs=arguments.inputs)
+    check_outputs_of_inputs(zip(arguments.inputs, outputs), overwrite=arguments.overwrite, inputs=arguments.inputs)
     model = load_model(checkpoint) if network else None
     frames = [read_ldr_frame_and_orientation(source) for source in arguments.inputs]  # RAW: sensor orientation
     for source, (frame, orientation), (exr_path, png_path) in zip(arguments.inputs, frames, outputs):

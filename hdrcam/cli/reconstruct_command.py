@@ -15,7 +15,7 @@ from pathlib import Path
 
 from hdrcam.cli.arguments import compute_device, int_at_least, positive_int
 from hdrcam.errors import InputError
-from hdrcam.io.atomic import atomic_paths, check_writable, same_file_key
+from hdrcam.io.atomic import atomic_paths, check_outputs_of_inputs
 from hdrcam.io.demosaic import DEFAULT_METHOD, METHODS
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX, MIN_TILE_PX
 
@@ -86,16 +86,10 @@ def run(arguments: argparse.Namespace) -> int:
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     if dtype != torch.float32 and device.type != "cuda":
         raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
-    planned: dict[str, Path] = {}
     inputs = [*arguments.inputs, *(path for path in (arguments.psf, arguments.checkpoint, arguments.partner)
                                    if isinstance(path, Path))]
-    for source in arguments.inputs:
-        for path in output_paths(arguments.out, source):
-            if same_file_key(path) in planned:
-                raise InputError(f"{source} and {planned[same_file_key(path)]} would both write {path}; "
-                                 "rename one of them")
-            planned[same_file_key(path)] = source
-            check_writable(path, overwrite=arguments.overwrite, inputs=inputs)
+    check_outputs_of_inputs(((source, output_paths(arguments.out, source)) for source in arguments.inputs),
+                            overwrite=arguments.overwrite, inputs=inputs)
     if arguments.streak_fit and arguments.partner:
         raise InputError("--streak-fit refits one network's proposal: leave out --partner")
     model = load_network_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)

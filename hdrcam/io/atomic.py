@@ -84,6 +84,22 @@ def check_outputs(paths: Iterable[Path], *, overwrite: bool = False, inputs: Ite
     return checked
 
 
+def check_outputs_of_inputs(outputs: Iterable[tuple[Path, Iterable[Path]]], *, overwrite: bool = False,
+                            inputs: Iterable[Path] = ()) -> None:
+    """:func:`check_outputs` for outputs named after their inputs, (input, its outputs) pairs: two inputs whose
+    outputs would be one file (a.exr and a.png both writing OUT/a.exr) are named."""
+    planned: dict[str, Path] = {}
+    every = []
+    for source, paths in outputs:
+        for path in map(Path, paths):
+            key = same_file_key(path)
+            if key in planned and planned[key] != source:
+                raise OutputExistsError(f"{source} and {planned[key]} would both write {path}; rename one of them")
+            planned[key] = source
+            every.append(path)
+    check_outputs(every, overwrite=overwrite, inputs=inputs)
+
+
 @contextlib.contextmanager
 def atomic_path(path: Path, *, overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix); publish it as ``path`` when the body succeeds.

@@ -277,3 +277,15 @@ def test_reconstruct_refuses_inputs_whose_outputs_collide_before_writing_anythin
         assert main(["reconstruct", str(pair[0]), str(pair[1]), "--out", str(out)]) == 1
         _one_line_error(capsys, "would both write")
         assert not out.exists() or not any(out.iterdir())
+
+
+def test_destreak_names_the_two_inputs_whose_outputs_collide(tmp_path, capsys):
+    frame = np.full((16, 16, 3), 0.5, np.float32)
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        write_exr(tmp_path / folder / "frame.exr", frame)
+    first, second = tmp_path / "a" / "frame.exr", tmp_path / "b" / "frame.exr"
+    assert main(["destreak", str(first), str(second), "--out", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err.strip()  # it named one output twice, not the inputs
+    assert error.count("\n") == 0 and f"{second} and {first} would both write" in error
+    assert not (tmp_path / "out").exists()
