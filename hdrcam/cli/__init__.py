@@ -73,6 +73,11 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
         return 128 + number
     except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
+        interrupt = _interrupt_behind(error)
+        if interrupt is not None:  # an extension module's import turned the interrupt into an ImportError
+            number = getattr(interrupt, "signal_number", signal.SIGINT)
+            _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
+            return 128 + number
         if _debugging():
             traceback.print_exc()
         message = failure_message(error)
@@ -82,6 +87,19 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
                 "traceback that HDRCAM_DEBUG=1 shows)")
         return EXIT_BUG
+
+
+def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (or :class:`hdrcam.errors.Interrupted`) an exception was raised while handling, if
+    any: a signal that lands inside a C extension's initialisation surfaces as an ImportError or SystemError
+    whose context is the interrupt."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return error
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return None
 
 
 _DEBUG_OFF = ("", "0", "false", "no", "off")

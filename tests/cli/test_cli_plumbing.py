@@ -80,3 +80,19 @@ def test_runtime_errors_name_the_command_with_its_action_as_usage_errors_do(tmp_
     assert main(["capture", "bracket", "--size", "64x48", "--psf", "dirac", "--stops", "100",
                  "--out", str(tmp_path / "b")]) == 1
     assert capsys.readouterr().err.startswith("hdrcam capture bracket: error: 100 exposures")
+
+
+def _import_interrupted(arguments):
+    try:
+        raise KeyboardInterrupt  # as Ctrl-C landing inside an extension module's initialisation
+    except KeyboardInterrupt:
+        raise ImportError("initialization of _C raised unreported exception") from None
+
+
+def test_an_interrupt_that_an_import_turned_into_an_import_error_is_an_interrupt(monkeypatch, capsys):
+    from hdrcam.cli import fabricate_command
+
+    monkeypatch.setattr(fabricate_command, "run", _import_interrupted)
+    assert main(["fabricate", "x.exr"]) == 130  # it was reported as an internal error, exit 3
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "interrupted by SIGINT" in error
