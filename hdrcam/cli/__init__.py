@@ -112,7 +112,12 @@ def _debugging() -> bool:
 
 def _report(line: str) -> None:
     with contextlib.suppress(OSError):  # standard error closed as well (2>&1 | head): nowhere left to say it
-        print(one_line(line), file=sys.stderr, flush=True)
+        progress = sys.modules.get("tqdm")  # a progress bar may be on the line: tqdm clears it first
+        if progress is not None:
+            progress.tqdm.write(one_line(line), file=sys.stderr)
+            sys.stderr.flush()
+        else:
+            print(one_line(line), file=sys.stderr, flush=True)
 
 
 class StandardOutputError(HdrcamError):

@@ -96,3 +96,17 @@ def test_an_interrupt_that_an_import_turned_into_an_import_error_is_an_interrupt
     assert main(["fabricate", "x.exr"]) == 130  # it was reported as an internal error, exit 3
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "interrupted by SIGINT" in error
+
+
+def test_a_reported_line_starts_its_own_line_beside_a_progress_bar(capsys):
+    import re
+
+    from tqdm import tqdm
+
+    from hdrcam.cli import _report
+
+    with tqdm(total=10, file=sys.stderr, desc="design run") as bar:
+        bar.update()
+        _report("hdrcam design: interrupted by SIGINT")
+    pieces = re.split(r"[\r\n]", capsys.readouterr().err)  # it followed the bar on the bar's own line
+    assert "hdrcam design: interrupted by SIGINT" in pieces
