@@ -59,14 +59,12 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
     from hdrcam.capture.notches import nearest_shutter
     from hdrcam.capture.scene import load_scene
-    from hdrcam.capture.simulated import simulation_psf
+    from hdrcam.capture.simulated import check_defect_settings, simulation_psf
     from hdrcam.errors import InputError, OutputExistsError
     from hdrcam.profiles import load_profile
 
     say = log or (lambda line: None)
-    for name, value in (("hot_pixel_fraction", hot_pixel_fraction), ("exposure_error", exposure_error)):
-        if not 0 <= value < 1:  # a fraction of the pixels; a relative error of a shutter time
-            raise InputError(f"{name} {value!r}: expected a fraction from 0 up to (not including) 1")
+    check_defect_settings(hot_pixel_fraction, exposure_error)  # before the folder is claimed
     chosen = load_profile(profile)
     folder = Path(out)
     lights_manifest, darks_manifest = folder / MANIFEST_NAME, folder / "darks" / MANIFEST_NAME

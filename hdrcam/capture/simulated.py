@@ -68,6 +68,7 @@ class SimulatedCamera:
         if psf.ndim != 3 or psf.shape[0] != 3:
             raise ValueError(f"the PSF must be 3 x k x k, got {psf.shape}")
         self.psf = psf.astype(np.float32)
+        check_defect_settings(hot_pixel_fraction, exposure_error)
         self.exposure_error = exposure_error
         self.reference_exposure_s = reference_exposure_s
         self.defects = SensorDefects.draw(scene.height_px, scene.width_px, hot_pixel_fraction, seed)
@@ -157,6 +158,14 @@ class SimulatedCamera:
             self._rates[dark] = bayer_mosaic(torch.from_numpy(camera_irradiance(scene, self.psf)),
                                           self.camera.cfa_pattern).numpy()
         return self._rates[dark].copy()
+
+
+def check_defect_settings(hot_pixel_fraction: float, exposure_error: float) -> None:
+    """InputError unless both are fractions from 0 up to (not including) 1: of the pixels, and the largest
+    relative error of a true shutter time."""
+    for name, value in (("hot_pixel_fraction", hot_pixel_fraction), ("exposure_error", exposure_error)):
+        if not 0 <= value < 1:
+            raise InputError(f"{name} {value!r}: expected a fraction from 0 up to (not including) 1")
 
 
 def camera_irradiance(scene: Scene, psf: np.ndarray) -> np.ndarray:
