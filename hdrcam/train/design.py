@@ -145,8 +145,9 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         raise InputError(f"--resume: {checkpoint_path} does not exist")
     check_destination_folder(out)  # before the model is built: an unusable --out fails at once
     if restart:  # the options it started with, as a resume from a checkpoint checks them (steps may change:
-        # no step was saved, so no learning-rate schedule has begun)
-        _check_same_run(out / "config.json", json.loads((out / "config.json").read_text()), config)
+        # no step was saved, so no learning-rate schedule has begun; nor a PSF, so a PSF file may replace a gone one)
+        _check_same_run(out / "config.json", json.loads((out / "config.json").read_text()), config,
+                        psf_file_may_replace=True)
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:
         steps = config.steps
@@ -168,8 +169,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     noise = torch.Generator(device=device).manual_seed(config.seed * 1000 + rank)
     start = 0
     if saved is not None:
-        if model.capture.simulator is None and not torch.allclose(model.capture.fixed.detach().cpu().float(),
-                                                                  saved["psf"], rtol=1e-5, atol=1e-8):
+        if model.capture.simulator is None and not same_psf(model.capture.fixed.detach().cpu(), saved["psf"]):
             raise InputError(f"--psf {config.psf}: not the PSF {out.name} trained behind so far (the file changed "
                              "since); resume needs the same PSF")
         model.network.load_state_dict(saved["network"], strict=False)
@@ -248,23 +248,32 @@ FILE_OPTIONS = ("psf", "init_checkpoint", "profile")  # run options that may nam
 
 
 def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
-                    saved_psf: torch.Tensor | None = None) -> None:
+                    saved_psf: torch.Tensor | None = None, psf_file_may_replace: bool = False) -> None:
     """Refuse to resume a run with other settings (seed, PSF, learning rate, ...): only ``steps`` may grow. A file
     is the same however its path is spelled (relative to another folder, absolute) and wherever a byte-identical
-    copy lies; a PSF file given where the run's own is gone, when it holds the checkpoint's ``saved_psf``."""
+    copy lies; a PSF file given where the run's own is gone, when it holds the checkpoint's ``saved_psf`` or
+    (``psf_file_may_replace``: a run that saved no step) whatever it holds."""
     wanted, saved = config.as_dict(), TrainConfig.from_dict(saved).as_dict()
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
         if key in FILE_OPTIONS and _same_file(saved.get(key), wanted.get(key)):
             continue
-        if key == "psf" and saved_psf is not None and _moved_psf_file(saved.get(key), wanted.get(key)):
-            profile = load_profile(wanted["profile"])
-            if not torch.allclose(torch.from_numpy(fixed_psf(wanted[key], profile)), saved_psf, rtol=1e-5, atol=1e-8):
-                raise InputError(f"--psf {wanted[key]}: not the PSF {checkpoint_path.parent.name} trained behind so "
-                                 "far (its own file is gone); resume needs the same PSF")
-            continue
+        if key == "psf" and _moved_psf_file(saved.get(key), wanted.get(key)):
+            if saved_psf is not None:
+                given = torch.from_numpy(fixed_psf(wanted[key], load_profile(wanted["profile"])))
+                if not same_psf(given, saved_psf):
+                    raise InputError(f"--psf {wanted[key]}: not the PSF {checkpoint_path.parent.name} trained behind "
+                                     "so far (its own file is gone); resume needs the same PSF")
+                continue
+            if psf_file_may_replace:
+                continue
         if saved.get(key) != wanted.get(key):
             raise InputError(f"--resume: {checkpoint_path} was started with {key} {saved.get(key)!r}, this run asks "
                              f"for {wanted.get(key)!r}; resume with the run's own options, or choose another --out")
+
+
+def same_psf(psf: torch.Tensor, saved_psf: torch.Tensor) -> bool:
+    """Whether a (3, S, S) PSF is the one a run saved: same size, values within float32 rounding."""
+    return psf.shape == saved_psf.shape and torch.allclose(psf.float(), saved_psf.float(), rtol=1e-5, atol=1e-8)
 
 
 def _moved_psf_file(saved: str | None, wanted: str | None) -> bool:

@@ -216,8 +216,8 @@ def test_a_run_resumes_from_another_folder_and_after_its_files_moved(tmp_path, m
     run, tiny = tmp_path / "run", ["--steps", "2", "--crop", "32", "--batch", "1", "--device", "cpu"]
     assert main(["design", "--psf", "psf.exr", *tiny, "--out", str(run)]) == 130
     monkeypatch.setattr(design, "train", train_slice)
-    moved, gone, other = tmp_path / "moved", tmp_path / "gone", tmp_path / "other"
-    for copy in (moved, gone, other):
+    moved, gone, other, smaller = tmp_path / "moved", tmp_path / "gone", tmp_path / "other", tmp_path / "smaller"
+    for copy in (moved, gone, other, smaller):
         shutil.copytree(run, copy)
     monkeypatch.chdir(tmp_path / "b")  # the PSF spelled from another folder is the same file
     assert main(["design", "--resume", "--psf", "../a/psf.exr", "--out", str(run)]) == 0  # was: another psf
@@ -227,9 +227,37 @@ def test_a_run_resumes_from_another_folder_and_after_its_files_moved(tmp_path, m
     assert all(torch.equal(resumed[key], moved_run[key]) for key in resumed)  # both continued the same run
     (tmp_path / "c" / "psf.exr").unlink()
     assert main(["design", "--resume", "--out", str(gone)]) == 0  # the checkpoint's PSF stands in for the file
+    assert all(torch.equal(resumed[key], read_checkpoint(gone / "model.pt")["network"][key]) for key in resumed)
     flipped = read_exr(measured)
     write_exr(tmp_path / "c" / "flipped.exr", flipped.rgb()[::-1].copy(), channel_names=("R", "G", "B"),
               attributes={key: value for key, value in flipped.attributes.items() if key == "pixel_pitch_m"})
     capsys.readouterr()
     assert main(["design", "--resume", "--psf", "../c/flipped.exr", "--out", str(other)]) == 1  # another PSF
     assert "not the PSF other trained behind so far (its own file is gone)" in capsys.readouterr().err
+    write_exr(tmp_path / "c" / "smaller.exr", flipped.rgb()[2:-2, 2:-2].copy(), channel_names=("R", "G", "B"),
+              attributes={key: value for key, value in flipped.attributes.items() if key == "pixel_pitch_m"})
+    assert main(["design", "--resume", "--psf", "../c/smaller.exr", "--out", str(smaller)]) == 1  # was exit 3
+    assert "not the PSF smaller trained behind" in capsys.readouterr().err
+
+
+def test_a_run_that_saved_no_step_takes_a_psf_file_given_where_its_own_is_gone(tmp_path, monkeypatch):
+    import shutil
+    from pathlib import Path
+
+    from hdrcam.cli import main
+    from hdrcam.train import design
+
+    measured = Path(__file__).resolve().parents[2] / "calibration" / "simulated-rank1" / "psf.exr"
+    shutil.copyfile(measured, tmp_path / "first.exr")
+    steps = design._train_steps
+
+    def interrupted(*arguments):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "_train_steps", interrupted)  # config.json written, no checkpoint
+    run, tiny = tmp_path / "run", ["--steps", "1", "--crop", "32", "--batch", "1", "--device", "cpu"]
+    assert main(["design", "--psf", str(tmp_path / "first.exr"), *tiny, "--out", str(run)]) == 130
+    monkeypatch.setattr(design, "_train_steps", steps)
+    (tmp_path / "first.exr").rename(tmp_path / "second.exr")
+    assert main(["design", "--resume", "--psf", str(tmp_path / "second.exr"), "--out", str(run)]) == 0
+    assert read_checkpoint(run / "model.pt")["config"]["psf"] == str(tmp_path / "second.exr")
