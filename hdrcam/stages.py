@@ -202,9 +202,10 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
         raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
     if init is not None and not Path(init).is_file():
         raise InputError(f"--init {init} does not exist")
-    given = _given(preset=preset, profile=_absolute_if_file(profile), data=data, steps=steps, batch=batch,
-                   crop_px=crop_px, learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every,
-                   precision=precision, channels_last=channels_last, init_checkpoint=_absolute_if_file(init))
+    given = _given(preset=preset, profile=_absolute_if_file(profile), data=_absolute_data(data), steps=steps,
+                   batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
+                   checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
+                   init_checkpoint=_absolute_if_file(init))
     if psf:
         given.update(psf=_absolute_if_file(psf), doe=None)
     elif doe:
@@ -258,7 +259,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
-    options = _given(data=data, steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
+    options = _given(data=_absolute_data(data), steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                      checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
                      psf=_absolute_if_file(psf))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
@@ -375,6 +376,13 @@ def _absolute_if_file(value: str | Path | None) -> str | None:
     if value is None:
         return None
     return str(Path(value).resolve()) if Path(value).is_file() else str(value)
+
+
+def _absolute_data(data: str | None) -> str | None:
+    """``--data`` as a run records it: its folders by absolute path (hdrcam.data.scenes.absolute_mixture)."""
+    from hdrcam.data.scenes import absolute_mixture
+
+    return None if data is None else absolute_mixture(data)
 
 
 def _given(**fields) -> dict:

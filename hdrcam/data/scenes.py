@@ -49,6 +49,16 @@ def parse_mixture(data: str) -> list[tuple[str, float]]:
     return mixture
 
 
+def absolute_mixture(data: str) -> str:
+    """``data`` (SOURCE[:WEIGHT],...) with every folder an absolute path, as a training run records it (a resume
+    from another folder finds the folders); one source keeps no weight, several keep theirs."""
+    mixture = parse_mixture(data)
+    sources = [source if source == PROCEDURAL else str(Path(source).resolve()) for source, _ in mixture]
+    if len(mixture) == 1:
+        return sources[0]
+    return ",".join(f"{source}:{weight!r}" for source, (_, weight) in zip(sources, mixture))
+
+
 class SceneSource:
     """Training draws from a mixture of ``procedural`` and folders of .exr/.hdr files (module docstring);
     a fixed test set from the first of them."""

@@ -34,7 +34,7 @@ import torch.distributed as dist
 from torch import nn
 from tqdm import tqdm
 
-from hdrcam.data.scenes import SceneSource
+from hdrcam.data.scenes import SceneSource, absolute_mixture
 from hdrcam.errors import InputError
 from hdrcam.limits import check_memory
 from hdrcam.io.atomic import check_destination_folder, write_text_atomic
@@ -257,6 +257,8 @@ def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
         if key in FILE_OPTIONS and _same_file(saved.get(key), wanted.get(key)):
             continue
+        if key == "data" and absolute_mixture(saved[key]) == absolute_mixture(wanted[key]):
+            continue  # the same folders, spelled from another folder
         if key == "psf" and _moved_psf_file(saved.get(key), wanted.get(key)):
             if saved_psf is not None:
                 given = torch.from_numpy(fixed_psf(wanted[key], load_profile(wanted["profile"])))

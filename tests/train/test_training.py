@@ -261,3 +261,30 @@ def test_a_run_that_saved_no_step_takes_a_psf_file_given_where_its_own_is_gone(t
     (tmp_path / "first.exr").rename(tmp_path / "second.exr")
     assert main(["design", "--resume", "--psf", str(tmp_path / "second.exr"), "--out", str(run)]) == 0
     assert read_checkpoint(run / "model.pt")["config"]["psf"] == str(tmp_path / "second.exr")
+
+
+def test_a_run_on_a_relative_data_folder_resumes_from_another_folder(tmp_path, monkeypatch):
+    from hdrcam.cli import main
+    from hdrcam.train import design
+
+    scenes = tmp_path / "a" / "scenes"
+    scenes.mkdir(parents=True)
+    photo = np.random.default_rng(0).uniform(0.0, 1.0, (96, 96, 3)).astype(np.float32)
+    photo[40:44, 40:44] = 50.0
+    write_exr(scenes / "photo.exr", photo)
+    (tmp_path / "b").mkdir()
+    train_slice = design.train
+
+    def stopped_after_a_checkpoint(config, folder, **options):
+        train_slice(config, folder, **options, stop_after=1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "train", stopped_after_a_checkpoint)
+    monkeypatch.chdir(tmp_path / "a")
+    run = tmp_path / "run"
+    tiny = ["--steps", "2", "--crop", "32", "--batch", "1", "--device", "cpu", "--psf", "dirac"]
+    assert main(["design", "--data", "scenes", *tiny, "--out", str(run)]) == 130
+    monkeypatch.setattr(design, "train", train_slice)
+    monkeypatch.chdir(tmp_path / "b")  # 'scenes is not a folder', then '--data ../a/scenes' refused as other data
+    assert main(["design", "--resume", "--data", "../a/scenes", "--out", str(run)]) == 0
+    assert read_checkpoint(run / "model.pt")["config"]["data"] == str(scenes)
