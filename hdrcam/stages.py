@@ -323,10 +323,18 @@ def _main_seed(seed: int | None, saved_config: dict | None) -> int:
 def _run_start(saved: dict | None) -> tuple[Path, dict] | None:
     """The checkpoint (path, state) a finetune run whose saved config is ``saved`` started from, None before its
     first save."""
-    from hdrcam.train.checkpoint import read_checkpoint
+    from hdrcam.errors import InputError
+    from hdrcam.train.checkpoint import partner_checkpoint, read_checkpoint, recorded_checkpoint
 
     began = (saved or {}).get("init_checkpoint")
-    return (Path(began), read_checkpoint(Path(began))) if began else None
+    if not began:
+        return None
+    start = recorded_checkpoint(began)
+    if not start.is_file():
+        raise InputError(f"{began}, the checkpoint this run started from, is gone; its partner "
+                         f"({partner_checkpoint(start).name}) is fine-tuned from beside it: restore it there, or "
+                         "resume with --no-partner")
+    return start, read_checkpoint(start)
 
 
 def _checked_partner(start: Path, state: dict) -> tuple[Path | None, dict | None]:

@@ -36,6 +36,16 @@ def partner_checkpoint(path: Path) -> Path:
     return path.with_name(path.stem + PARTNER_SUFFIX + path.suffix)
 
 
+def recorded_checkpoint(recorded: str | Path) -> Path:
+    """The checkpoint a run recorded as its start: the file itself, or, where a shipped checkpoint (or its
+    partner) was recorded by another installation's path that is not here, this installation's copy."""
+    path = Path(recorded)
+    shipped = SHIPPED_CHECKPOINT.parent / path.name
+    if not path.is_file() and path.parent.name == SHIPPED_CHECKPOINT.parent.name and shipped.is_file():
+        return shipped
+    return path
+
+
 def save_checkpoint(path: Path, state: dict, *, overwrite: bool = True) -> Path:
     """Write ``state`` (see the module docstring) atomically."""
     serialised = io.BytesIO()  # torch.save to a path reports a full disk as a RuntimeError without the cause

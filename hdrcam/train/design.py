@@ -50,7 +50,7 @@ from hdrcam.recon.network import Reconstruction, ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import vgg_for_preset
 from hdrcam.train.batches import BatchStream
-from hdrcam.train.checkpoint import read_checkpoint, save_checkpoint
+from hdrcam.train.checkpoint import read_checkpoint, recorded_checkpoint, save_checkpoint
 from hdrcam.train.choices import FIXED_PSFS
 from hdrcam.train.config import TrainConfig
 from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
@@ -94,7 +94,7 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool,
     torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
     network = ReconstructionNet(preset, vgg)
     if config.init_checkpoint and saved is None:
-        state = read_checkpoint(Path(config.init_checkpoint))
+        state = read_checkpoint(recorded_checkpoint(config.init_checkpoint))
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
         network.load_state_dict(state["network"], strict=False)

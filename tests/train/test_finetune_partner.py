@@ -259,3 +259,33 @@ def test_a_run_stopped_before_its_first_checkpoint_tells_its_config_from_config_
 def test_exporting_a_checkpoint_with_a_partner_says_how_to_export_the_partner(tmp_path):
     with pytest.warns(UserWarning, match="has a partner, .*-partner.pt.*hdrcam export --checkpoint"):
         assert main(["export", "--format", "torchscript", "--out", str(tmp_path / "m.pt")]) == 0
+
+
+def test_a_copied_run_finds_the_shipped_start_here_and_names_another_start_that_is_gone(tmp_path, monkeypatch,
+                                                                                           capsys):
+    from hdrcam.train.checkpoint import recorded_checkpoint
+
+    elsewhere = Path("/another/install/hdrcam/checkpoints")
+    assert recorded_checkpoint(elsewhere / SHIPPED_CHECKPOINT.name) == SHIPPED_CHECKPOINT
+    partner = partner_checkpoint(SHIPPED_CHECKPOINT)
+    assert recorded_checkpoint(elsewhere / partner.name) == partner
+    assert recorded_checkpoint(tmp_path / "gone.pt") == tmp_path / "gone.pt"
+    own = tmp_path / "own"
+    own.mkdir()
+    for path in (SHIPPED_CHECKPOINT, partner):
+        shutil.copyfile(path, own / path.name)
+    train = design.train
+
+    def stopped_after_a_checkpoint(config, folder, **options):
+        train(config, folder, **options, stop_after=1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(design, "train", stopped_after_a_checkpoint)
+    run = tmp_path / "run"
+    assert main(_finetune(run, "--checkpoint", str(own / SHIPPED_CHECKPOINT.name))) == 130
+    monkeypatch.setattr(design, "train", train)
+    shutil.rmtree(own)
+    capsys.readouterr()
+    assert main(_finetune(run, "--resume")) == 1  # it said only 'does not exist'
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "the checkpoint this run started from, is gone" in error
