@@ -22,7 +22,8 @@ if TYPE_CHECKING:
 MASKS_MARK = ("white = etch: mask_b_of_k etches 2^(b-1) steps into the plate's top surface (the highest level), so "
               "each feature ends (levels - 1 - level) steps deep and the relief is the height map (heights above "
               "the deepest etch); rows and columns as in heightmap.exr and the simulated PSF. A measured PSF turned "
-              "180 degrees from the simulated one means the plate was mounted face-reversed")
+              "180 degrees from the simulated one means an inverted relief (the masks' tone reversed); a mirrored "
+              "one, a plate mounted face-reversed")
 MAX_LEVELS = 2 ** 16  # 16 binary masks; a level histogram of 2^40 bins alone would need 8 TB
 
 

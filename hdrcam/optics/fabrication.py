@@ -5,7 +5,7 @@ Level step = h_max / levels. Heights are rounded to the nearest level; a height 
 feature's height above the deepest etch, so the plate's top surface is the highest level (levels - 1) and a
 feature of level L is etched (levels - 1 - L) steps deep. Mask b (b = 0..k-1) marks the features etched by 2^b
 steps: sum_b 2^b mask_b = levels - 1 - L (masks of the level bits themselves would etch the relief inverted,
-whose PSF is the design's turned 180 degrees).
+a phase of -phi, whose PSF is the design's turned 180 degrees; a plate turned face-reversed mirrors its PSF).
 
 Efficiency estimates at the design wavelength (where h_max is 2 pi of phase):
 - ideal multilevel: sinc^2(1 / levels) (Swanson 1989), 0.987 for 16 levels;
