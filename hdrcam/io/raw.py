@@ -148,28 +148,30 @@ RAW_BYTES_PER_PIXEL = 16  # LibRaw's buffer (uint16, kept: the frame is a view o
 def read_raw(path: str | Path) -> RawFrame:
     """A RAW file's metadata and Bayer digital numbers; InputError also for a black level above the data."""
     metadata, bayer = _read(Path(path), with_pixels=True)
+    _check_no_dead_rows(metadata, bayer)  # first: zero-filled rows also pull a site's median below black
     _check_black_below_data(metadata, bayer)
-    _check_no_dead_rows(metadata, bayer)
     return RawFrame(metadata, bayer)
 
 
 BLACK_CHECK_STRIDE = 7  # every 7th row and column of each CFA position: the median of ~120k samples at 24 MP
 BLACK_ABOVE_DATA_TOLERANCE = 0.01  # of the black-to-white range: read noise is ~1e-4 of it at base ISO
+DEAD_ROW_FRACTION_OF_BLACK = 0.5  # a flat row below this fraction of black holds no data
 
 
 def _check_no_dead_rows(meta: RawMetadata, bayer_dn: np.ndarray) -> None:
-    """InputError when FILLED_ROWS or more rows lie wholly more than BLACK_ABOVE_DATA_TOLERANCE of the range below
-    black (their brightest sample too): a sensor row always has noise around black at least, so such rows are no
-    data - a file whose end was zero-filled on the card or in a copy, which its TIFF strips do not reveal."""
-    black_dn = float(meta.black_level_tile().min())
-    floor_dn = black_dn - BLACK_ABOVE_DATA_TOLERANCE * (meta.white_level_dn - black_dn)
-    if not floor_dn > 0:  # a black level of 0: nothing lies below it
-        return
-    dead = np.flatnonzero(bayer_dn.max(axis=1) < floor_dn)
+    """InputError when FILLED_ROWS or more rows hold one value below half the black level in every sample: a
+    sensor row always has noise around black at least, so such rows are no data - a file whose data was
+    zero-filled on the card or in a copy, which its TIFF strips do not reveal (rows that vary below black are a
+    black level above the data: :func:`_check_black_below_data`). Judged against black alone, not the white level
+    (a DNG's default 65535 over 14-bit data would move a threshold drawn from the range)."""
+    floor_dn = DEAD_ROW_FRACTION_OF_BLACK * float(meta.black_level_tile().min())
+    brightest = bayer_dn.max(axis=1)
+    low = np.flatnonzero(brightest < floor_dn)  # a black level of 0: nothing lies below it
+    dead = low[bayer_dn[low].min(axis=1) == brightest[low]] if low.size else low
     if dead.size >= FILLED_ROWS:
-        raise InputError(f"{meta.path}: damaged: {dead.size} of its rows (from row {dead[0]}) hold no sample within "
-                         f"{100 * BLACK_ABOVE_DATA_TOLERANCE:g} % of white of its black level {black_dn:g} DN (zero-"
-                         "filled data); copy it from the card again")
+        raise InputError(f"{meta.path}: damaged: {dead.size} of its rows (the first at row {dead[0]}) hold one value "
+                         f"below half its black level of {meta.black_level_tile().min():g} DN in every sample "
+                         "(zero-filled data); copy it from the card again")
 
 
 def _check_black_below_data(meta: RawMetadata, bayer_dn: np.ndarray) -> None:

@@ -263,8 +263,14 @@ def test_per_site_black_levels_under_an_odd_active_area_origin_are_refused(tmp_p
 def test_rows_zero_filled_on_the_card_are_refused_as_damage(tmp_path):
     raw = sensor_dn(np.full((64, 96), 3000 / 0.01), 0.01, np.random.default_rng(0), clip_dn=16383)
     raw[40:52] = 0  # inside the file's length: its TIFF strips look whole (inspect and reconstruct took it)
-    with pytest.raises(InputError, match=r"damaged: 12 of its rows \(from row 40\) hold no sample"):
+    with pytest.raises(InputError, match=r"damaged: 12 of its rows \(the first at row 40\) hold one value below"):
         read_raw(write_dng(tmp_path / "zeroed.dng", raw))
+    with pytest.raises(InputError, match=r"damaged: 12 of its rows"):  # 65535 over 14-bit data: still found
+        read_raw(write_dng(tmp_path / "zeroed-65535.dng", raw, white_dn=65535))
+    mostly = raw.copy()
+    mostly[8:] = 0  # most of the file: named as damage, not as a black level above the data
+    with pytest.raises(InputError, match=r"damaged: 56 of its rows"):
+        read_raw(write_dng(tmp_path / "mostly.dng", mostly))
     raw[40:52] = 512 + np.random.default_rng(1).integers(-3, 4, (12, 96))  # a black stripe with noise is data
     raw[45, :] = 512  # and so is one flat row at black
     read_raw(write_dng(tmp_path / "dark-stripe.dng", raw))
