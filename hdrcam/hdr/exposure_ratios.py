@@ -34,6 +34,9 @@ RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
 SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame
 REFINEMENTS = 3
 BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
+NEIGHBOUR_ROWS = 2  # a sample's same-colour neighbours lie two rows away
+_SAME_COLOUR_NEIGHBOURS = np.array([[1, 0, 1, 0, 1], [0, 0, 0, 0, 0], [1, 0, 0, 0, 1], [0, 0, 0, 0, 0],
+                                    [1, 0, 1, 0, 1]], np.float32)  # the centre sample itself left out
 
 StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
@@ -147,16 +150,15 @@ def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]], boun
     return totals
 
 
-NEIGHBOUR_ROWS = 2  # a sample's same-colour neighbours lie two rows away
-_SAME_COLOUR_NEIGHBOURS = np.array([[1, 0, 1, 0, 1], [0, 0, 0, 0, 0], [1, 0, 0, 0, 1], [0, 0, 0, 0, 0],
-                                    [1, 0, 1, 0, 1]], np.float32) / 8  # the centre sample itself left out
-
-
 def neighbour_mean(bayer: np.ndarray) -> np.ndarray:
-    """Mean of each sample's eight nearest samples of its own CFA colour (two rows or columns away), without
-    the sample itself: a prediction of its value whose noise is independent of its own (rows past the strip's
-    edges are mirrored, ``BORDER_REFLECT_101``, so the sample never enters its own mean)."""
-    return cv2.filter2D(bayer, cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS, borderType=cv2.BORDER_REFLECT_101)
+    """Mean of each sample's nearest samples of its own CFA colour (two rows or columns away: eight inside the
+    array, fewer at its edges), without the sample itself: a prediction of its value whose noise is independent
+    of its own. Outside the array counts as missing (a normalised convolution), so no edge mirrors a sample onto
+    itself; inside, a strip given NEIGHBOUR_ROWS rows either side gets what the whole frame would."""
+    sums = cv2.filter2D(bayer, cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS, borderType=cv2.BORDER_CONSTANT)
+    counts = cv2.filter2D(np.ones_like(bayer, np.float32), cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS,
+                          borderType=cv2.BORDER_CONSTANT)
+    return cv2.divide(sums, counts, dst=sums)
 
 
 def _sums(shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> tuple[int, float, float]:
