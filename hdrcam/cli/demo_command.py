@@ -102,7 +102,8 @@ def run(arguments: argparse.Namespace) -> int:
     seconds = round(time.perf_counter() - started, 1)
     partner = partner_checkpoint(checkpoint)  # reconstruct ran it with the checkpoint when it exists
     write_text_atomic(out / "index.md", _index(scores, timings, seconds, checkpoint, psf_l1,
-                                               partner if partner.is_file() else None))
+                                               partner if partner.is_file() else None,
+                                               finetuned=arguments.finetune_steps > 0))
     print(json.dumps({"out": str(out), "seconds": seconds, "step_seconds": timings,
                       "psnr_linear_db": {k: round(v["psnr_linear"], 2) for k, v in scores.items()},
                       "pu21_psnr_db": {k: round(v["pu21_psnr"], 2) for k, v in scores.items()},
@@ -121,14 +122,15 @@ def _psf_l1(measured, design) -> list[float]:
     return [round(float(np.abs(a - b).sum()), 4) for a, b in zip(*crops)]
 
 
-def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1, partner: Path | None) -> str:
+def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1, partner: Path | None, *,
+           finetuned: bool) -> str:
     rows = "\n".join(f"| {name} | {m['psnr_linear']:.2f} | {m['pu21_psnr']:.2f} | {m['psnr_mu']:.2f} |"
                      for name, m in scores.items())
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
     networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint, "
                 "except where strong streaks bear one out)" if partner else f"Network: `{checkpoint}`")
-    finetuned = ("`4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and run partner/), "
-                 if checkpoint.parent.name == "4-finetune" else "")
+    finetune_folder = ("`4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and run partner/), "
+                       if finetuned else "")
     return f"""# hdrcam demo
 
 The whole chain on the simulated camera, {seconds} s in all. {networks}.
@@ -150,6 +152,6 @@ All three previews share the truth's exposure. The measured PSF (L1 against the 
 
 Where things are: `design-psf.exr` (the PSF of the designed DOE, which the simulated camera sees),
 `1-calibration-bracket/` (RAW frames + bracket.json + darks), `2-calibration-fused.exr`, `3-calibration/`
-(psf.exr, record.json, psf.png), {finetuned}`5-night-frame.exr` and `5-night-truth.exr`, `6-reconstruction/`
+(psf.exr, record.json, psf.png), {finetune_folder}`5-night-frame.exr` and `5-night-truth.exr`, `6-reconstruction/`
 (HDR EXR with an `unreliable` mask channel, preview PNG).
 """

@@ -241,7 +241,8 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
     if not (np.isfinite(lowest) and np.isfinite(highest)):
         raise InputError(f"{path}: refusing to write NaN or Inf values")
     halved = {name for name, array in arrays.items() if half and array.dtype != bool and name not in float32_channels}
-    largest = max((float(np.abs(arrays[name]).max()) for name in halved if arrays[name].size), default=0.0)
+    largest = max((max(float(arrays[name].max()), -float(arrays[name].min())) for name in halved
+                   if arrays[name].size), default=0.0)  # no temporary of the image's size
     if largest > HALF_MAX:
         raise InputError(f"{path}: values up to {largest:.6g} exceed the half-float range ({HALF_MAX:g}); write "
                          "float32 instead")

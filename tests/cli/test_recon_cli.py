@@ -170,7 +170,7 @@ def test_the_demo_index_lists_no_finetune_folder_when_none_was_made():
     from hdrcam.cli.demo_command import _index
 
     scores = {"ldr": {"psnr_linear": 30.0, "pu21_psnr": 20.0, "psnr_mu": 25.0}}
-    index = _index(scores, {"capture": 1.0}, 10.0, SHIPPED_CHECKPOINT, [0.01, 0.02, 0.03], None)
+    index = _index(scores, {"capture": 1.0}, 10.0, SHIPPED_CHECKPOINT, [0.01, 0.02, 0.03], None, finetuned=False)
     assert "4-finetune" not in index  # --finetune-steps 0 listed a folder it never made
 
 
