@@ -153,14 +153,14 @@ def load_network_model(path, *, vgg_weights=None):
         from hdrcam.recon.export import OnnxNetwork
 
         network = OnnxNetwork(Path(path))
-        return TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, Path(path))
-    if path:
-        from hdrcam.train.checkpoint import read_checkpoint
-
-        if read_checkpoint(Path(path))["config"].get("psf") == "windshield":
-            raise InputError(f"{path}: a windshield network (design --psf windshield): it removes windshield streaks "
-                             f"(hdrcam destreak --method network --checkpoint {path}), not clipped highlights")
-    return load_model(path, vgg_weights=vgg_weights)
+        model = TrainedModel(network, network.psf, network.metadata["hdrcam_profile"], "onnx", 0, Path(path),
+                             network.metadata.get("hdrcam_fixed_psf"))
+    else:
+        model = load_model(path, vgg_weights=vgg_weights)
+    if model.fixed_psf == "windshield":
+        raise InputError(f"{model.source}: a windshield network (design --psf windshield): it removes windshield "
+                         "streaks (hdrcam destreak --method network), not clipped highlights")
+    return model
 
 
 def resolve_partner(model, partner="auto", *, vgg_weights=None):

@@ -39,7 +39,8 @@ def run(arguments: argparse.Namespace) -> int:
     model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
     if arguments.format == "onnx":
         metadata = {"hdrcam_psf": json.dumps(model.psf.tolist()), "hdrcam_profile": model.profile,
-                    "hdrcam_preset": model.preset, "hdrcam_checkpoint": str(model.source)}
+                    "hdrcam_preset": model.preset, "hdrcam_checkpoint": str(model.source),
+                    **({"hdrcam_fixed_psf": model.fixed_psf} if model.fixed_psf else {})}
         export_onnx(model.network, arguments.out, metadata, overwrite=arguments.overwrite)
     else:
         export_torchscript(model.network, arguments.out, overwrite=arguments.overwrite)

@@ -89,6 +89,7 @@ class TrainedModel:
     preset: str
     step: int
     source: Path
+    fixed_psf: str | None = None  # the fixed PSF it was trained behind (dirac, windshield, a file), None for a DOE
 
 
 def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
@@ -108,4 +109,5 @@ def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
     if not all(bool(torch.isfinite(tensor).all()) for tensor in tensors):
         raise InputError(f"{path}: the checkpoint holds NaN or Inf weights (its training diverged); use another")
     network.eval()
-    return TrainedModel(network, state["psf"].numpy(), state["profile"], preset.name, int(state["step"]), path)
+    return TrainedModel(network, state["psf"].numpy(), state["profile"], preset.name, int(state["step"]), path,
+                        state["config"].get("psf"))

@@ -38,6 +38,12 @@ def test_reconstruct_refuses_the_windshield_network(tmp_path, capsys):
     assert main(["reconstruct", str(frame), "--checkpoint", str(windshield), "--out", str(tmp_path / "r")]) == 1
     assert "a windshield network" in _one_line(capsys)  # it ran, its streak check behind a 2-point star
     assert not (tmp_path / "r").exists()
+    pytest.importorskip("onnxruntime")
+    exported = tmp_path / "windshield.onnx"
+    assert main(["export", "--format", "onnx", "--checkpoint", str(windshield), "--out", str(exported)]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", str(frame), "--checkpoint", str(exported), "--out", str(tmp_path / "r")]) == 1
+    assert "a windshield network" in _one_line(capsys)  # its export ran as an HDR network
 
 
 def test_vgg_weights_for_a_preset_without_vgg_are_named_as_unused(tmp_path):
