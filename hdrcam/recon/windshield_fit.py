@@ -43,18 +43,28 @@ SEARCH_ITERATIONS = 10
 FINAL_ITERATIONS = 30
 
 
+EVIDENCE_DISTANCE_PX = 4  # the evidence for streaks is judged on pixels at least this far from a clipped one
+MIN_EVIDENCE = 50.0  # F statistic below which a cluster's fitted streaks are not subtracted (_evidence)
+
+
 @dataclasses.dataclass
 class WindshieldFitReport:
     angle_deg: float | None  # the fitted streak angle from the vertical; None when nothing clipped
     blobs: int
     clusters: int
     seconds: float
+    clusters_left: int = 0  # clusters whose fitted streaks had too little evidence: left as they were
 
     def summary(self) -> str:
         if self.angle_deg is None:
             return "no clipped light: nothing to remove"
-        return (f"streaks of {self.blobs} clipped lights in {self.clusters} clusters removed, fitted angle "
-                f"{self.angle_deg:+.2f} deg from the vertical")
+        if self.clusters_left == self.clusters:
+            return (f"no streak evidence around the {self.blobs} clipped lights (the best fit, at "
+                    f"{self.angle_deg:+.2f} deg, explains little more than noise): the frame is left as it was")
+        left = (f"; {self.clusters_left} clusters left as they were (too little streak evidence)"
+                if self.clusters_left else "")
+        return (f"streaks of {self.blobs} clipped lights in {self.clusters - self.clusters_left} of "
+                f"{self.clusters} clusters removed, fitted angle {self.angle_deg:+.2f} deg from the vertical{left}")
 
 
 @dataclasses.dataclass
@@ -80,14 +90,17 @@ def subtract_windshield_streaks(frame: np.ndarray) -> tuple[np.ndarray, Windshie
     angle = _best_angle(crops)
     clean = frame.astype(np.float32, copy=True)
     tails = _tails(angle)
+    left = 0
     for crop in crops:
         amplitude = _fit(crop, tails, FINAL_ITERATIONS)
         streaks = fft_convolve(amplitude[:, crop.index].reshape(crop.blob_mask.shape) * crop.blob_mask, tails)
-        removed = (torch.from_numpy(clean[crop.where].transpose(2, 0, 1)) - streaks).clamp(min=0.0)
-        kept = crop.blob_mask > 0
-        clean[crop.where] = torch.where(kept, torch.from_numpy(clean[crop.where].transpose(2, 0, 1)),
-                                        removed).numpy().transpose(1, 2, 0)
-    return clean, WindshieldFitReport(angle, blob_count - 1, len(crops), time.perf_counter() - started)
+        if _evidence(crop, streaks) < MIN_EVIDENCE:
+            left += 1
+            continue
+        pixels = torch.from_numpy(clean[crop.where].transpose(2, 0, 1))
+        removed = (pixels - streaks).clamp(min=0.0)
+        clean[crop.where] = torch.where(crop.blob_mask > 0, pixels, removed).numpy().transpose(1, 2, 0)
+    return clean, WindshieldFitReport(angle, blob_count - 1, len(crops), time.perf_counter() - started, left)
 
 
 def directional_background(frame: np.ndarray) -> np.ndarray:
@@ -124,6 +137,29 @@ def _fit(crop: _Crop, tails: torch.Tensor, iterations: int) -> torch.Tensor:
     """(3, blobs) brightness a_k >= 0 of each clipped blob (label 0, the background, stays 0)."""
     return fit_blob_amplitudes(crop.streaks, crop.weight, crop.blob_mask, crop.index, crop.blob_count, tails,
                                iterations)
+
+
+def _evidence(crop: _Crop, streaks: torch.Tensor) -> float:
+    """How much the fitted ``streaks`` explain, as an F statistic: the residual they remove per fitted amplitude
+    over the residual left per remaining pixel, on the fit's pixels at least EVIDENCE_DISTANCE_PX from the
+    cluster's clipped ones (nearer, a light's own unclipped rim fits as well as a streak). On the 16 procedural
+    night scenes of 256 px of the test set: 6.0-2870 around lights behind a windshield (5 of 31 clusters below
+    MIN_EVIDENCE), -2.1-130 around the same lights behind a clean one (1 of 36 above); the clipped areas of 5
+    real photographs (hdr/, 320 px centre crops): 0.9-14.5 behind a windshield, 0.1-11.2 without."""
+    own = (crop.blob_mask[0].numpy() > 0).astype(np.uint8)
+    side = 2 * EVIDENCE_DISTANCE_PX + 1
+    far = torch.from_numpy((cv2.dilate(own, cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))) == 0)
+                           .astype(np.float32))
+    weight = crop.weight * far
+    unexplained = float((weight * crop.streaks ** 2).sum())
+    left = float((weight * (crop.streaks - streaks) ** 2).sum())
+    amplitudes = 3 * (crop.blob_count - 1)
+    pixels = float(weight.sum())
+    if pixels <= amplitudes:
+        return 0.0
+    if left <= 0.0:
+        return float("inf") if unexplained > 0.0 else 0.0
+    return (unexplained - left) / amplitudes / (left / (pixels - amplitudes))
 
 
 def _residual(crops: list[_Crop], angle_deg: float) -> float:

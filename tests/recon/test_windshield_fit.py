@@ -39,6 +39,14 @@ def test_the_streaks_angle_is_found_and_the_streaks_subtracted(angle_deg):
     np.testing.assert_array_equal(cleaned[clipped], streaked[clipped])  # clipped pixels keep their value
 
 
+def test_lights_behind_a_clean_windshield_are_left_as_they_were():
+    frame = capture(night(), dirac(63))
+    frame = np.clip(frame + np.random.default_rng(0).normal(0, 0.01, frame.shape), 0, 1).astype(np.float32)
+    cleaned, report = subtract_windshield_streaks(frame)
+    assert np.array_equal(cleaned, frame)  # streaks were fitted to the lights' surroundings and subtracted
+    assert report.clusters_left == report.clusters == 2 and "no streak evidence" in report.summary()
+
+
 def test_a_frame_without_clipped_lights_is_returned_unchanged():
     frame = np.random.default_rng(0).uniform(0.0, 0.9, (64, 80, 3)).astype(np.float32)
     cleaned, report = subtract_windshield_streaks(frame)
