@@ -60,6 +60,16 @@ def exposure_label(exposure_s: float) -> str:
     return f"{exposure_s:.4g}\""
 
 
+def true_exposure_s(labelled_s: float) -> float:
+    """The true time (seconds) of a shutter notch whose nominal label ``labelled_s`` is (1/125 s is 2^-7 s; to
+    1e-6, as LibRaw's float32 keeps a label), else ``labelled_s`` itself (a time off the 1/3 EV series: a
+    half-stop notch, an exact time)."""
+    for notch in SHUTTER_NOTCHES:
+        if abs(labelled_s - float(notch.nominal)) <= 1e-6 * labelled_s:
+            return notch.true_s
+    return labelled_s
+
+
 def shutter_from_ptp(value: int) -> ShutterNotch:
     """The notch of a 0xD20D value, read as the fraction numerator / denominator (libgphoto2's reading: 300/10
     and 30/1 are both 30 s); ValueError for Bulb (0) or a time that is no notch."""

@@ -32,8 +32,9 @@ def workspace(tmp_path_factory) -> Workspace:
     root = tmp_path_factory.mktemp("faults")
     small = ["--camera", "sim", "--profile", "simulated", "--psf", "dirac", "--darks"]
     _hdrcam("capture", "bracket", *small, "--size", "64x48", "--stops", "3", "--out", root / "bracket")
-    _hdrcam("capture", "bracket", *small, "--scene", "pinholes::40", "--size", "192x160", "--stops", "4",
-            "--out", root / "pinholes")
+    _hdrcam("capture", "bracket", "--camera", "sim", "--profile", "simulated", "--darks", "--scene", "pinholes::40",
+            "--size", "192x160", "--stops", "4", "--out", root / "pinholes")  # the DOE's PSF: a bare lens's
+    # is too sharp for a 15 px fit from these few sources (it fitted 800 % negative red energy)
     _hdrcam("simulate", "night", "--psf", "dirac", "--size", "64", "64", "--out", root / "frame.exr")
     save_heightmap(root / "heightmap.exr", np.random.default_rng(0).uniform(0, 1.1e-6, (64, 64)), 32e-6)
     _hdrcam("calibrate", "psf", root / "pinholes", "--darks", root / "pinholes" / "darks", "--profile", "simulated",

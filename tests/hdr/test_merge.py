@@ -19,6 +19,7 @@ from hdrcam.optics.analytic import dirac
 from hdrcam.profiles import load_profile
 
 PROFILE = load_profile("simulated")
+TRUE_SHORTEST_S = 2.0 ** -12  # the true time of the 1/4000 notch; labels off the nominal series are taken as given
 
 
 def capture(folder: Path, scene: Scene | str = "night", *, seed=0, exposure_error=0.0, iso=100.0, stops=5,
@@ -128,6 +129,16 @@ def test_pixels_clipped_everywhere_carry_a_finite_lower_bound_and_a_flag(tmp_pat
     assert 0 < lower_bound < 1e6 * 60
 
 
+def test_a_few_lamps_on_black_are_not_taken_for_a_capped_lens(tmp_path):
+    import warnings
+
+    capture(tmp_path, "point", stops=3, size=(400, 600))  # one lamp: a few hundred lit samples of 240 000
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        merge_bayer(read_bracket([tmp_path]), PROFILE.camera)
+    assert not [w for w in caught if "almost no light" in str(w.message)]  # it asked: dark frames given as lights?
+
+
 def test_a_black_scene_merges_to_near_zero_and_stays_finite(tmp_path):
     capture(tmp_path, "flat:0", stops=3, size=(32, 32))
     with pytest.warns(UserWarning, match="recorded almost no light"):  # as dark frames given as lights would
@@ -223,9 +234,35 @@ def test_a_longer_frame_that_is_no_brighter_keeps_the_labelled_ratio():
     assert "no signal above black; using the labelled ratio" in notes[0]  # it read "ratio 4.0000 from 1280 pixels"
 
 
+def test_nominal_labels_are_read_as_the_shutters_true_times():
+    """Frames exposed 2^-12 .. 2^-4 s (the A7's notches) and labelled 1/4000 .. 1/15 s, as cameras label them,
+    merge to the radiance that made them: the labels taken as they are left it 2.4 % dark (labels only) and put
+    the whole bracket's scale on their geometric mean (estimated ratios)."""
+    import dataclasses
+
+    from hdrcam.capture.notches import SHUTTER_NOTCHES, nearest_shutter
+    from hdrcam.io.raw import RawFrame
+
+    template = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0]
+    meta, white = template.metadata, template.metadata.white_level_dn
+    radiance = np.geomspace(1.0, 300.0, template.bayer_dn.size).reshape(template.bayer_dn.shape)
+    first = nearest_shutter(TRUE_SHORTEST_S).index
+    notches = [SHUTTER_NOTCHES[first - 3 * k] for k in range(9)]  # 1 EV apart, towards longer times
+    assert [notch.label for notch in notches[:3]] == ["1/4000", "1/2000", "1/1000"]
+    rng = np.random.default_rng(0)
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=float(notch.nominal)),
+                       np.minimum(np.round(radiance * notch.true_s * (white - 512) * meta.iso / 100 + 512
+                                           + rng.normal(0, 2, radiance.shape)), white).astype(np.uint16))
+              for notch in notches]
+    for estimate_ratios in (False, True):
+        merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=estimate_ratios)
+        valid = ~merged.clipped_everywhere
+        assert abs(np.median(merged.rate[valid] / radiance[valid]) - 1) < 0.002, estimate_ratios
+
+
 def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
     """Nine frames 1 EV apart (the A7's longest bracket) need a usable-frame mask wider than 8 bits (a uint8 one
-    overflowed); noise-free frames made from a known radiance ramp (1 to 1000, relative units) merge back to it
+    overflowed); noise-free frames made from a known radiance ramp (1 to 1024, relative units) merge back to it
     within the 14-bit quantisation, each frame used exactly where it and its neighbours are unclipped."""
     import dataclasses
 
@@ -237,8 +274,8 @@ def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
     meta = template.metadata
     black, white = 512.0, meta.white_level_dn
     assert np.all(meta.black_level_tile() == black)
-    radiance = np.geomspace(1.0, 1000.0, template.bayer_dn.size).reshape(template.bayer_dn.shape)
-    exposures = [meta.exposure_s * 2.0 ** k for k in range(9)]
+    radiance = np.geomspace(1.0, 1024.0, template.bayer_dn.size).reshape(template.bayer_dn.shape)
+    exposures = [TRUE_SHORTEST_S * 2.0 ** k for k in range(9)]
     frames = []
     for exposure in exposures:
         signal_dn = radiance * exposure * (white - black) * meta.iso / 100 + black
@@ -252,7 +289,7 @@ def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
         expected = cv2.dilate(clipped, np.ones((3, 3), np.uint8)) == 0
         np.testing.assert_array_equal((merged.usable_frames >> k) & 1 == 1, expected, err_msg=f"frame {k}")
     assert merged.usable_frames[0, 0] == 0b111111111  # radiance 1 clips in no frame
-    assert merged.usable_frames[-1, -1] == 0b11  # 1000 fills frame 1 halfway
+    assert merged.usable_frames[-1, -1] == 0b11  # 1024 fills frame 1 halfway
 
 
 def test_more_frames_than_the_mask_holds_are_refused():
@@ -273,10 +310,10 @@ def test_frames_one_pixel_wide_merge(shape):
 
     meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
     signal_dn = np.linspace(500, 1500, shape[0] * shape[1]).round().reshape(shape)  # no value repeats: no pile-up
-    frames = [RawFrame(dataclasses.replace(meta, exposure_s=meta.exposure_s * 4 ** k),
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=TRUE_SHORTEST_S * 4 ** k),
                        (512 + signal_dn * 4 ** k).astype(np.uint16)) for k in range(2)]
     merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
-    expected = signal_dn / meta.exposure_s / (meta.white_level_dn - 512)  # relative units at ISO 100
+    expected = signal_dn / TRUE_SHORTEST_S / (meta.white_level_dn - 512)  # relative units at ISO 100
     np.testing.assert_allclose(merged.rate, expected, rtol=1e-5)
 
 
