@@ -23,6 +23,7 @@ kept pixels' sums.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -156,9 +157,17 @@ def neighbour_mean(bayer: np.ndarray) -> np.ndarray:
     of its own. Outside the array counts as missing (a normalised convolution), so no edge mirrors a sample onto
     itself; inside, a strip given NEIGHBOUR_ROWS rows either side gets what the whole frame would."""
     sums = cv2.filter2D(bayer, cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS, borderType=cv2.BORDER_CONSTANT)
-    counts = cv2.filter2D(np.ones_like(bayer, np.float32), cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS,
+    return cv2.divide(sums, _neighbour_counts(bayer.shape), dst=sums)
+
+
+@functools.lru_cache(maxsize=8)
+def _neighbour_counts(shape: tuple[int, int]) -> np.ndarray:
+    """How many same-colour neighbours each sample of an array of ``shape`` has inside it (8, fewer at the edges);
+    one array per strip shape, read only."""
+    counts = cv2.filter2D(np.ones(shape, np.float32), cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS,
                           borderType=cv2.BORDER_CONSTANT)
-    return cv2.divide(sums, counts, dst=sums)
+    counts.flags.writeable = False
+    return counts
 
 
 def _sums(shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> tuple[int, float, float]:
