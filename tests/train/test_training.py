@@ -199,23 +199,14 @@ def test_a_run_resumes_from_another_folder_and_after_its_files_moved(tmp_path, m
     from pathlib import Path
 
     from hdrcam.cli import main
-    from hdrcam.train import design
 
     measured = Path(__file__).resolve().parents[2] / "calibration" / "simulated-rank1" / "psf.exr"
     for folder in ("a", "b", "c"):
         (tmp_path / folder).mkdir()
     shutil.copyfile(measured, tmp_path / "a" / "psf.exr")
-    train_slice = design.train
-
-    def stopped_after_a_checkpoint(config, folder, **options):
-        train_slice(config, folder, **options, stop_after=1)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(design, "train", stopped_after_a_checkpoint)
     monkeypatch.chdir(tmp_path / "a")
     run, tiny = tmp_path / "run", ["--steps", "2", "--crop", "32", "--batch", "1", "--device", "cpu"]
-    assert main(["design", "--psf", "psf.exr", *tiny, "--out", str(run)]) == 130
-    monkeypatch.setattr(design, "train", train_slice)
+    _design_stopped_after_a_checkpoint(monkeypatch, ["design", "--psf", "psf.exr", *tiny, "--out", str(run)])
     moved, gone, other, smaller = tmp_path / "moved", tmp_path / "gone", tmp_path / "other", tmp_path / "smaller"
     for copy in (moved, gone, other, smaller):
         shutil.copytree(run, copy)
@@ -265,7 +256,6 @@ def test_a_run_that_saved_no_step_takes_a_psf_file_given_where_its_own_is_gone(t
 
 def test_a_run_on_a_relative_data_folder_resumes_from_another_folder(tmp_path, monkeypatch):
     from hdrcam.cli import main
-    from hdrcam.train import design
 
     scenes = tmp_path / "a" / "scenes"
     scenes.mkdir(parents=True)
@@ -273,18 +263,26 @@ def test_a_run_on_a_relative_data_folder_resumes_from_another_folder(tmp_path, m
     photo[40:44, 40:44] = 50.0
     write_exr(scenes / "photo.exr", photo)
     (tmp_path / "b").mkdir()
-    train_slice = design.train
-
-    def stopped_after_a_checkpoint(config, folder, **options):
-        train_slice(config, folder, **options, stop_after=1)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(design, "train", stopped_after_a_checkpoint)
     monkeypatch.chdir(tmp_path / "a")
     run = tmp_path / "run"
     tiny = ["--steps", "2", "--crop", "32", "--batch", "1", "--device", "cpu", "--psf", "dirac"]
-    assert main(["design", "--data", "scenes", *tiny, "--out", str(run)]) == 130
-    monkeypatch.setattr(design, "train", train_slice)
+    _design_stopped_after_a_checkpoint(monkeypatch, ["design", "--data", "scenes", *tiny, "--out", str(run)])
     monkeypatch.chdir(tmp_path / "b")  # 'scenes is not a folder', then '--data ../a/scenes' refused as other data
     assert main(["design", "--resume", "--data", "../a/scenes", "--out", str(run)]) == 0
     assert read_checkpoint(run / "model.pt")["config"]["data"] == str(scenes)
+
+
+def _design_stopped_after_a_checkpoint(monkeypatch, argv: list[str]) -> None:
+    """Run ``hdrcam`` with ``argv`` (a design) interrupted, as SIGINT would, right after its first checkpoint."""
+    from hdrcam.cli import main
+    from hdrcam.train import design
+
+    train_slice = design.train
+
+    def stopped(config, folder, **options):
+        train_slice(config, folder, **options, stop_after=1)
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(design, "train", stopped)
+        assert main(argv) == 130
