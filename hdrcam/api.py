@@ -159,7 +159,8 @@ def load_network_model(path, *, vgg_weights=None):
         model = load_model(path, vgg_weights=vgg_weights)
     if model.fixed_psf == "windshield":
         raise InputError(f"{model.source}: a windshield network (design --psf windshield): it removes windshield "
-                         "streaks (hdrcam destreak --method network), not clipped highlights")
+                         f"streaks (hdrcam destreak --method network --checkpoint {model.source}), not clipped "
+                         "highlights")
     return model
 
 

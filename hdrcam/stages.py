@@ -259,9 +259,9 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
-    options = _given(data=_absolute_data(data), steps=steps, batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
-                     checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                     psf=_absolute_if_file(psf))
+    options = _given(data=_absolute_data(data), steps=steps, batch=batch, crop_px=crop_px,
+                     learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
+                     channels_last=channels_last, psf=_absolute_if_file(psf))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
                "data_workers": data_workers}
     last = _train(out, new_run, {**options, **_given(init_checkpoint=str(start) if checkpoint else None)},

@@ -90,16 +90,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
-    """The KeyboardInterrupt (or :class:`hdrcam.errors.Interrupted`) an exception was raised while handling, if
-    any: a signal that lands inside a C extension's initialisation surfaces as an ImportError or SystemError
-    whose context is the interrupt."""
-    seen = set()
-    while error is not None and id(error) not in seen:
-        if isinstance(error, KeyboardInterrupt):
-            return error
-        seen.add(id(error))
-        error = error.__cause__ or error.__context__
-    return None
+    """The KeyboardInterrupt (or :class:`hdrcam.errors.Interrupted`) behind an ImportError or SystemError, if its
+    direct cause or context is one: a signal landing inside a C extension's initialisation surfaces that way.
+    Any other error raised while an interrupt was handled (a full disk while cleaning up) is reported as
+    itself."""
+    if not isinstance(error, (ImportError, SystemError)):
+        return None
+    behind = error.__cause__ or error.__context__
+    return behind if isinstance(behind, KeyboardInterrupt) else None
 
 
 _DEBUG_OFF = ("", "0", "false", "no", "off")

@@ -93,8 +93,9 @@ def check_outputs_of_inputs(outputs: Iterable[tuple[Path, Iterable[Path]]], *, o
     for source, paths in outputs:
         for path in map(Path, paths):
             key = same_file_key(path)
-            if key in planned and planned[key] != source:
-                raise OutputExistsError(f"{source} and {planned[key]} would both write {path}; rename one of them")
+            if key in planned:
+                raise OutputExistsError(f"{source} is given twice" if planned[key] == source else
+                                        f"{source} and {planned[key]} would both write {path}; rename one of them")
             planned[key] = source
             every.append(path)
     check_outputs(every, overwrite=overwrite, inputs=inputs)

@@ -110,4 +110,4 @@ def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
         raise InputError(f"{path}: the checkpoint holds NaN or Inf weights (its training diverged); use another")
     network.eval()
     return TrainedModel(network, state["psf"].numpy(), state["profile"], preset.name, int(state["step"]), path,
-                        state["config"].get("psf"))
+                        (state.get("config") or {}).get("psf"))

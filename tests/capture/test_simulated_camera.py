@@ -117,7 +117,8 @@ def test_a_scene_too_bright_for_float32_is_one_line_not_a_traceback():
         camera_irradiance(load_scene("flat:1e34", 400, 600, seed=0), dirac(9))
 
 
-@pytest.mark.parametrize("settings", [{"hot_pixel_fraction": 1.0}, {"exposure_error": -0.1}, {"exposure_error": np.nan}])
+@pytest.mark.parametrize("settings", [{"hot_pixel_fraction": 1.0}, {"exposure_error": -0.1},
+                                      {"exposure_error": np.nan}])
 def test_the_simulated_camera_refuses_defect_settings_that_are_no_fractions(settings):
     scene = load_scene("flat:0.5", 32, 48, seed=0)
     with pytest.raises(InputError, match="expected a fraction from 0 up to"):  # built directly, it took them

@@ -110,3 +110,18 @@ def test_a_reported_line_starts_its_own_line_beside_a_progress_bar(capsys):
         _report("hdrcam design: interrupted by SIGINT")
     pieces = re.split(r"[\r\n]", capsys.readouterr().err)  # it followed the bar on the bar's own line
     assert "hdrcam design: interrupted by SIGINT" in pieces
+
+
+def _disk_full_while_cleaning_up(arguments):
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        raise OSError(28, "No space left on device")
+
+
+def test_an_error_raised_while_an_interrupt_was_handled_is_reported_as_itself(monkeypatch, capsys):
+    from hdrcam.cli import fabricate_command
+
+    monkeypatch.setattr(fabricate_command, "run", _disk_full_while_cleaning_up)
+    assert main(["fabricate", "x.exr"]) == 1  # not 130 'interrupted ... outputs removed'
+    assert "no space left on the device" in capsys.readouterr().err

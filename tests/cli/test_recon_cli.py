@@ -289,3 +289,10 @@ def test_destreak_names_the_two_inputs_whose_outputs_collide(tmp_path, capsys):
     error = capsys.readouterr().err.strip()  # it named one output twice, not the inputs
     assert error.count("\n") == 0 and f"{second} and {first} would both write" in error
     assert not (tmp_path / "out").exists()
+
+
+def test_destreak_names_an_input_given_twice(tmp_path, capsys):
+    frame = write_exr(tmp_path / "frame.exr", np.full((16, 16, 3), 0.5, np.float32))
+    assert main(["destreak", str(frame), str(frame), "--out", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and f"{frame} is given twice" in error

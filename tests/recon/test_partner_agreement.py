@@ -81,12 +81,12 @@ def test_cli_reconstruct_with_a_partner_runs_both(tmp_path, capsys):
 def test_cli_refuses_a_partner_behind_another_psf_before_any_work(tmp_path, capsys):
     source = tmp_path / "frame.exr"
     write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
-    windshield = SHIPPED_CHECKPOINT.parent / "windshield-fast.pt"
-    assert main(["reconstruct", str(source), "--partner", str(windshield), "--out", str(tmp_path / "out")]) == 1
+    other = SHIPPED_CHECKPOINT.parent / "table2" / "dirac.pt"  # behind a bare lens
+    assert main(["reconstruct", str(source), "--partner", str(other), "--out", str(tmp_path / "out")]) == 1
     error = capsys.readouterr().err
-    assert "windshield-fast.pt was trained behind another PSF" in error and "internal error" not in error
+    assert "dirac.pt was trained behind another PSF" in error and "internal error" not in error
     assert not (tmp_path / "out").exists()
-    assert main(["evaluate", "--partner", str(windshield), "--count", "1", "--size", "64",
+    assert main(["evaluate", "--partner", str(other), "--count", "1", "--size", "64",
                  "--out", str(tmp_path / "ev")]) == 1
     assert "another PSF" in capsys.readouterr().err
 
@@ -229,7 +229,7 @@ def test_a_partner_file_behind_another_psf_beside_a_checkpoint_is_refused(tmp_pa
 
     checkpoint = tmp_path / "model.pt"
     shutil.copy(SHIPPED_CHECKPOINT, checkpoint)
-    shutil.copy(SHIPPED_CHECKPOINT.parent / "windshield-fast.pt", tmp_path / "model-partner.pt")
+    shutil.copy(SHIPPED_CHECKPOINT.parent / "table2" / "dirac.pt", tmp_path / "model-partner.pt")
     source = tmp_path / "frame.exr"
     write_exr(source, frame_with_a_window(), channel_names=("R", "G", "B"))
     assert main(["reconstruct", str(source), "--checkpoint", str(checkpoint), "--out", str(tmp_path / "out")]) == 1

@@ -286,3 +286,12 @@ def _design_stopped_after_a_checkpoint(monkeypatch, argv: list[str]) -> None:
     with monkeypatch.context() as patch:
         patch.setattr(design, "train", stopped)
         assert main(argv) == 130
+
+
+def test_a_checkpoint_saved_without_its_config_still_loads(tmp_path):
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, save_checkpoint
+
+    state = read_checkpoint(SHIPPED_CHECKPOINT)
+    del state["config"]
+    save_checkpoint(tmp_path / "bare.pt", state)
+    assert load_model(tmp_path / "bare.pt").fixed_psf is None  # KeyError: 'config', exit 3
