@@ -60,10 +60,16 @@ def exposure_label(exposure_s: float) -> str:
     return f"{exposure_s:.4g}\""
 
 
-def true_exposure_s(labelled_s: float) -> float:
-    """The true time (seconds) of a shutter notch whose nominal label ``labelled_s`` is (1/125 s is 2^-7 s; to
-    1e-6, as LibRaw's float32 keeps a label), else ``labelled_s`` itself (a time off the 1/3 EV series: a
-    half-stop notch, an exact time)."""
+NOMINAL_LABEL_MAKES = ("SONY",)  # bodies whose files label 1/3 EV notches nominally (1/125 for 2^-7 s)
+
+
+def true_exposure_s(labelled_s: float, make: str) -> float:
+    """The true time (seconds) of the shutter notch whose nominal label ``labelled_s`` is (1/125 s is 2^-7 s; to
+    1e-6, as LibRaw's float32 keeps a label) in a file of a body of NOMINAL_LABEL_MAKES (an A7's notches are
+    1/3 EV only); else ``labelled_s`` itself: a time off the series, or another make's file, which may record
+    exact times (1/1000 s meaning 1/1000 s) or half-stop notches (1/6 s for 2^-2.5 s)."""
+    if make.strip().upper() not in NOMINAL_LABEL_MAKES:
+        return labelled_s
     for notch in SHUTTER_NOTCHES:
         if abs(labelled_s - float(notch.nominal)) <= 1e-6 * labelled_s:
             return notch.true_s

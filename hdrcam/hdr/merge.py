@@ -8,10 +8,11 @@ not favour samples that happen to be low. Clipped samples (at or above the clip 
 position from the data - the pile-up below the metadata white level, hdrcam.io.raw_clipping - minus a
 margin, dilated so their neighbours are not trusted either) get no weight; a pixel clipped in every frame
 keeps the lower bound clip / t_shortest and is flagged. Exposure ratios are estimated from the data
-(ratio of sums over pixels unclipped in both frames), starting from the EXIF times read as the shutter's true
-times where they are the nominal labels of its 1/3 EV notches (1/125 s is really 2^-7 s:
+(ratio of sums over pixels unclipped in both frames), starting from the EXIF times - read as the shutter's true
+times where a Sony body labels its 1/3 EV notches nominally (1/125 s is really 2^-7 s:
 hdrcam.capture.notches.true_exposure_s), which also anchor the absolute scale: a bracket from 1/1000 s, labels
-taken as they are, was 4.3 % dark, and brackets of other notches disagreed by up to 4 %.
+taken as they are, was 4.3 % dark, and brackets of other notches disagreed by up to 4 %; other makes' labels are
+taken as written.
 
 Units of the result: relative radiance, full wells per second at ISO 100 (1.0 = a signal that fills the
 sensor in one second at base ISO).
@@ -46,7 +47,7 @@ _NEIGHBOURS = np.ones((3, 3), np.uint8)
 MAX_FRAMES = 64  # bits of the widest usable-frame mask
 UINT16_WHITE_DN = 65535.0
 LIT_SIGMAS, LIT_FRACTION = 10.0, 1e-3  # a bracket that records light has more samples this far above black
-LIT_CLUSTER_SAMPLES = 4  # or this many of them in clusters (a point light's 2 x 2 core), which hot pixels do not form
+LIT_CLUSTER_SAMPLES = 4  # or one 8-connected group this large (a point light's 2 x 2 core)
 CLIP_MARGIN = 0.01  # of the black-to-clip range
 STRIP_ROWS = 64  # rows per work item: a strip's temporaries (64 x 6000 px float32, 1.5 MB each) stay in the
 # caches, and per-call costs (held under the GIL) are spread over enough pixels; the weighted passes of a 24 MP
@@ -206,7 +207,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     bracket = _BracketStrips(frames, darks, threshold_tile)
     row_strips = strips(height, STRIP_ROWS)
     labelled = np.array([frame.metadata.exposure_s for frame in frames])
-    nominal_true = np.array([true_exposure_s(t) for t in labelled])  # the scale's anchor: 1/125 s is 2^-7 s
+    nominal_true = np.array([true_exposure_s(t, meta.make) for t in labelled])  # the anchor: 1/125 s is 2^-7 s
     to_relative = 1.0 / ((white - black) * (iso / 100.0))
     rate = np.empty((height, width), np.float32)
     variance = np.empty((height, width), np.float32) if with_variance else None
@@ -250,6 +251,9 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
                                        np.sqrt(read_variance), notes, pool) \
             if estimate_ratios and len(frames) > 1 else nominal_true.copy()
         list(pool.map(merge_strip, row_strips))
+    if not np.array_equal(nominal_true, labelled):
+        notes.append(f"{meta.make} labels read as the notches' true times (1/125 s is 2^-7 s): "
+                     + ", ".join(f"{t:.6g}" for t in nominal_true) + " s")
     return BayerMerge(rate, variance, usable_frames == 0, exposures, labelled, clip, clip_tile, notes,
                       usable_frames, noise, read_variance, to_relative)
 
@@ -270,9 +274,9 @@ def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: flo
 
 def _warn_if_no_light(longest: RawFrame, black_dn: float, noise: NoiseModel) -> None:
     """Warn when even the longest frame recorded almost no light (fewer than LIT_FRACTION of its samples
-    LIT_SIGMAS read-noise sigmas above black, and fewer than LIT_CLUSTER_SAMPLES of them beside another lit
-    sample within two pixels): dark frames given as lights, or a capped lens. Hot pixels stand alone; a few
-    lamps on black light clusters, though far fewer samples than the fraction."""
+    LIT_SIGMAS read-noise sigmas above black, and no 8-connected group of LIT_CLUSTER_SAMPLES of them): dark
+    frames given as lights, or a capped lens. Hot pixels stand alone; a few lamps on black light compact groups,
+    though far fewer samples than the fraction."""
     lit_mask = longest.bayer_dn > black_dn + LIT_SIGMAS * max(noise.read_noise_dn, 1.0)
     lit = np.count_nonzero(lit_mask)
     if lit < LIT_FRACTION * longest.bayer_dn.size and _clustered(lit_mask) < LIT_CLUSTER_SAMPLES:
@@ -282,9 +286,11 @@ def _warn_if_no_light(longest: RawFrame, black_dn: float, noise: NoiseModel) -> 
 
 
 def _clustered(mask: np.ndarray) -> int:
-    """How many True samples have another True sample within two pixels (the nearest of their own colour)."""
-    near = cv2.filter2D(mask.view(np.uint8), cv2.CV_16U, np.ones((5, 5), np.uint16), borderType=cv2.BORDER_CONSTANT)
-    return int(np.count_nonzero(near[mask] > 1))
+    """How many True samples lie in 8-connected groups of at least LIT_CLUSTER_SAMPLES (a point light's core):
+    random hot pixels, even thousands of them, next to never form one."""
+    count, _, stats, _ = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    return int(areas[areas >= LIT_CLUSTER_SAMPLES].sum())
 
 
 def _weighted(rates: list[np.ndarray], times: np.ndarray, usable: list[np.ndarray],

@@ -139,6 +139,16 @@ def test_a_few_lamps_on_black_are_not_taken_for_a_capped_lens(tmp_path):
     assert not [w for w in caught if "almost no light" in str(w.message)]  # it asked: dark frames given as lights?
 
 
+def test_thousands_of_hot_pixels_do_not_pass_for_light():
+    from hdrcam.hdr.merge import _clustered
+
+    hot = np.zeros((800, 1200), bool)
+    hot.flat[np.random.default_rng(0).choice(hot.size, 4000, replace=False)] = True  # 0.4 %: a long dark frame's
+    assert _clustered(hot) == 0  # counted by neighbours within two pixels, 357 of them passed for lamps
+    hot[100:102, 200:202] = True  # one lamp's 2 x 2 core
+    assert _clustered(hot) >= 4
+
+
 def test_a_black_scene_merges_to_near_zero_and_stays_finite(tmp_path):
     capture(tmp_path, "flat:0", stops=3, size=(32, 32))
     with pytest.warns(UserWarning, match="recorded almost no light"):  # as dark frames given as lights would
@@ -258,6 +268,14 @@ def test_nominal_labels_are_read_as_the_shutters_true_times():
         merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=estimate_ratios)
         valid = ~merged.clipped_everywhere
         assert abs(np.median(merged.rate[valid] / radiance[valid]) - 1) < 0.002, estimate_ratios
+    assert merged.notes[-1].startswith("Sony labels read as the notches' true times")
+    exact = [RawFrame(dataclasses.replace(frame.metadata, make="Acme", exposure_s=notch.true_s), frame.bayer_dn)
+             for frame, notch in zip(frames, notches)]  # another make's file records its exact times
+    merged = merge_bayer(exact, PROFILE.camera, estimate_ratios=False)
+    assert abs(np.median(merged.rate[valid] / radiance[valid]) - 1) < 0.002
+    nominal_elsewhere = [RawFrame(dataclasses.replace(frame.metadata, make="Acme"), frame.bayer_dn) for frame in frames]
+    np.testing.assert_array_equal(merge_bayer(nominal_elsewhere, PROFILE.camera, estimate_ratios=False).exposures_s,
+                                  [frame.metadata.exposure_s for frame in frames])  # taken as written
 
 
 def test_a_nine_frame_bracket_merges_to_the_radiance_that_made_it():
