@@ -54,6 +54,7 @@ class WindshieldFitReport:
     clusters: int
     seconds: float
     clusters_left: int = 0  # clusters whose fitted streaks had too little evidence: left as they were
+    blobs_left: int = 0  # the clipped lights in those clusters
 
     def summary(self) -> str:
         if self.angle_deg is None:
@@ -63,8 +64,9 @@ class WindshieldFitReport:
                     f"{self.angle_deg:+.2f} deg, explains little more than noise): the frame is left as it was")
         left = (f"; {self.clusters_left} clusters left as they were (too little streak evidence)"
                 if self.clusters_left else "")
-        return (f"streaks of {self.blobs} clipped lights in {self.clusters - self.clusters_left} of "
-                f"{self.clusters} clusters removed, fitted angle {self.angle_deg:+.2f} deg from the vertical{left}")
+        return (f"streaks of {self.blobs - self.blobs_left} clipped lights in {self.clusters - self.clusters_left} "
+                f"of {self.clusters} clusters removed, fitted angle {self.angle_deg:+.2f} deg from the "
+                f"vertical{left}")
 
 
 @dataclasses.dataclass
@@ -90,17 +92,19 @@ def subtract_windshield_streaks(frame: np.ndarray) -> tuple[np.ndarray, Windshie
     angle = _best_angle(crops)
     clean = frame.astype(np.float32, copy=True)
     tails = _tails(angle)
-    left = 0
+    left = blobs_left = 0
     for crop in crops:
         amplitude = _fit(crop, tails, FINAL_ITERATIONS)
         streaks = fft_convolve(amplitude[:, crop.index].reshape(crop.blob_mask.shape) * crop.blob_mask, tails)
         if _evidence(crop, streaks) < MIN_EVIDENCE:
             left += 1
+            blobs_left += crop.blob_count - 1
             continue
         pixels = torch.from_numpy(clean[crop.where].transpose(2, 0, 1))
         removed = (pixels - streaks).clamp(min=0.0)
         clean[crop.where] = torch.where(crop.blob_mask > 0, pixels, removed).numpy().transpose(1, 2, 0)
-    return clean, WindshieldFitReport(angle, blob_count - 1, len(crops), time.perf_counter() - started, left)
+    return clean, WindshieldFitReport(angle, blob_count - 1, len(crops), time.perf_counter() - started, left,
+                                      blobs_left)
 
 
 def directional_background(frame: np.ndarray) -> np.ndarray:
