@@ -35,6 +35,8 @@ GAUSS_NEWTON_STEPS = 6
 CENTRING_ROUNDS = 3  # each re-solve leaves a fraction of the centroid offset
 LSMR_ITERATIONS = 400
 MAX_STEP_PX = 0.5
+OUTLIER_SIGMAS = 8.0  # a residual this many noise sigmas from the fit is no sample of the PSF (a hot pixel)
+MAX_OUTLIER_FRACTION = 0.05  # of the samples: more than hot pixels make (1e-3 of the pixels: 1.3 % of the samples)
 
 
 @dataclasses.dataclass
@@ -45,6 +47,7 @@ class EffectivePsf:
     reduced_chi2: float  # weighted residual per sample; ~1 when the model explains the data to the noise
     centroid_residual_px: float  # distance of P_G's centroid from pixel k // 2 after the last iteration
     negative_energy: np.ndarray  # 3: fraction of each channel's energy removed by clipping at zero
+    outlier_samples: int = 0  # samples left out of the second fit for residuals beyond OUTLIER_SIGMAS
 
 
 def green_centroid_offset(psf: np.ndarray) -> tuple[float, float]:
@@ -235,14 +238,21 @@ def fit_effective_psf(windows: list[SourceWindow], size: int) -> EffectivePsf:
         source.brightness /= mean
     gradient = _gradient_operator(size)
     scaled = _solve_psf(sources, size, gradient)
-    chi2 = 0.0
-    for _ in range(GAUSS_NEWTON_STEPS):
-        scaled, chi2 = _joint_step(sources, scaled)
-        _normalise_gauge(sources, scaled)
-        scaled = _solve_psf(sources, size, gradient)
-    for _ in range(CENTRING_ROUNDS):
-        _normalise_gauge(sources, scaled)
-        scaled = _solve_psf(sources, size, gradient)
+    outliers = 0
+    for fit_round in range(2):  # the second after leaving out the samples the first fit cannot explain
+        chi2 = 0.0
+        for _ in range(GAUSS_NEWTON_STEPS):
+            scaled, chi2 = _joint_step(sources, scaled)
+            _normalise_gauge(sources, scaled)
+            scaled = _solve_psf(sources, size, gradient)
+        for _ in range(CENTRING_ROUNDS):
+            _normalise_gauge(sources, scaled)
+            scaled = _solve_psf(sources, size, gradient)
+        if fit_round == 0:
+            outliers = _leave_out_outliers(sources, scaled)
+            if not outliers:
+                break
+            scaled = _solve_psf(sources, size, gradient)
     colour = scaled.sum(axis=(1, 2))
     clipped = np.clip(scaled, 0.0, None)
     negative = clipped.sum(axis=(1, 2)) / colour - 1.0
@@ -251,4 +261,25 @@ def fit_effective_psf(windows: list[SourceWindow], size: int) -> EffectivePsf:
     residual = float(np.hypot(*green_centroid_offset(psf)))
     return EffectivePsf(psf, np.array([[s.y_px, s.x_px] for s in sources]),
                         np.array([s.brightness * colour for s in sources]),
-                        chi2 / max(samples - size * size * 3, 1), residual, np.abs(negative))
+                        chi2 / max(samples - size * size * 3, 1), residual, np.abs(negative), outliers)
+
+
+def _leave_out_outliers(sources: list[_Source], scaled: np.ndarray) -> int:
+    """Give no weight to the samples whose residual from the fitted model exceeds OUTLIER_SIGMAS of their noise
+    (hot pixels where no dark frames found them, cosmic rays); returns how many. None are left out when more
+    than MAX_OUTLIER_FRACTION of the samples would be: then the model itself misses (a --size smaller than the
+    PSF), and dropping samples would hide it."""
+    outlying = []
+    for source in sources:
+        window = source.window
+        model = source.model(scaled)[0]
+        predicted = source.brightness * np.take_along_axis(model, window.channel[None].astype(np.int64), 0)[0]
+        outlying.append((np.abs(window.rate - predicted) * np.sqrt(window.weight) > OUTLIER_SIGMAS)
+                        & (window.weight > 0))
+    count = sum(int(mask.sum()) for mask in outlying)
+    samples = sum(int((source.window.weight > 0).sum()) for source in sources)
+    if count > MAX_OUTLIER_FRACTION * samples:
+        return 0
+    for source, mask in zip(sources, outlying):
+        source.window.weight[mask] = 0.0
+    return count

@@ -51,6 +51,7 @@ def record_document(calibration: PsfCalibration, profile: Profile, command: str)
         "background_per_channel": [float(b) for b in calibration.background],
         "peak_snr_per_channel": [float(s) for s in calibration.peak_snr],
         "reduced_chi2": fit.reduced_chi2,
+        "outlier_samples_left_out": fit.outlier_samples,
         "negative_energy_clipped": [float(n) for n in fit.negative_energy],
         "units": "PSF: fraction of each channel's energy per pixel (unit sum); background: relative radiance",
         "software": software_versions(),

@@ -59,8 +59,9 @@ def run(arguments: argparse.Namespace) -> int:
     paths = write_record(arguments.out, calibration, profile, command, overwrite=arguments.overwrite)
     fit = calibration.fit
     print(f"{len(calibration.windows)} point sources ({calibration.rejected_sources} rejected), "
-          f"{calibration.hot_pixels} hot pixels left out; PSF {calibration.psf.shape[-1]} px, energy in crop "
-          + "/".join(f"{e:.4f}" for e in calibration.energy_in_crop) + f"; reduced chi2 {fit.reduced_chi2:.3f}")
+          f"{calibration.hot_pixels} hot pixels and {fit.outlier_samples} outlying samples left out; PSF "
+          f"{calibration.psf.shape[-1]} px, energy in crop " + "/".join(f"{e:.4f}" for e in calibration.energy_in_crop)
+          + f"; reduced chi2 {fit.reduced_chi2:.3f}")
     print("peak SNR R/G/B " + "/".join(f"{s:.3g}" for s in calibration.peak_snr)
           + "; background " + "/".join(f"{b:.3g}" for b in calibration.background))
     print(f"-> {', '.join(str(p) for p in paths)} in {time.perf_counter() - started:.1f} s")
