@@ -26,6 +26,7 @@ from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import matching_darks
 from hdrcam.hdr.merge import BayerMerge, dilated, merge_bayer
+from hdrcam.hdr.neighbour_mean import neighbour_mean
 from hdrcam.io.raw import RawFrame
 from hdrcam.profiles import CameraSpec
 
@@ -58,15 +59,6 @@ class PsfCalibration:
         peaks = self.fit.flux * self.fit.psf.max(axis=(1, 2))[None, :]
         noise = np.array([w.noise for w in self.windows])
         return np.median(peaks / np.maximum(noise, 1e-30), axis=0)
-
-
-def neighbour_mean(bayer: np.ndarray) -> np.ndarray:
-    """Mean of each sample's eight same-colour neighbours (two pixels away): a rate estimate free of the
-    sample's own noise, for its weight."""
-    kernel = np.zeros((5, 5), np.float32)
-    kernel[::2, ::2] = 1.0 / 8.0
-    kernel[2, 2] = 0.0
-    return cv2.filter2D(bayer.astype(np.float32), -1, kernel, borderType=cv2.BORDER_REFLECT)
 
 
 def centred_energy(psf: np.ndarray, size: int) -> np.ndarray:

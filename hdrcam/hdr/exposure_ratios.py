@@ -1,7 +1,7 @@
 """True exposure times of a bracket, estimated from its data: ratios of adjacent frames, anchored to the labels.
 
 The ratio of frame k+1 to k is sum(y_k+1) / sum(y_k) over pixels unclipped in both whose shorter-frame signal,
-predicted by the mean of its eight same-colour neighbours (``neighbour_mean``), is below RATIO_HEADROOM of the
+predicted by the mean of its eight same-colour neighbours (hdrcam.hdr.neighbour_mean), is below RATIO_HEADROOM of the
 clip level divided by the ratio, and which carry signal: a third frame (k+2, else k-1) is above SIGNAL_FLOOR
 read-noise sigmas there or clipped. The bound and the signal test use values whose noise is independent of
 the pixel's own two samples: a bound on a sample's own noisy value biases the sums. Bounding y_k itself made the
@@ -23,21 +23,18 @@ kept pixels' sums.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-import cv2
 import numpy as np
+
+from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS, neighbour_mean
 
 MIN_RATIO_SAMPLES = 200
 RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
 SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame
 REFINEMENTS = 3
 BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
-NEIGHBOUR_ROWS = 2  # a sample's same-colour neighbours lie two rows away
-_SAME_COLOUR_NEIGHBOURS = np.array([[1, 0, 1, 0, 1], [0, 0, 0, 0, 0], [1, 0, 0, 0, 1], [0, 0, 0, 0, 0],
-                                    [1, 0, 1, 0, 1]], np.float32)  # the centre sample itself left out
 
 StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
@@ -149,25 +146,6 @@ def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]], boun
         totals[k] = (np.count_nonzero(below), np.einsum("i,i->", shorter, below, dtype=np.float64),
                      np.einsum("i,i->", longer, below, dtype=np.float64))
     return totals
-
-
-def neighbour_mean(bayer: np.ndarray) -> np.ndarray:
-    """Mean of each sample's nearest samples of its own CFA colour (two rows or columns away: eight inside the
-    array, fewer at its edges), without the sample itself: a prediction of its value whose noise is independent
-    of its own. Outside the array counts as missing (a normalised convolution), so no edge mirrors a sample onto
-    itself; inside, a strip given NEIGHBOUR_ROWS rows either side gets what the whole frame would."""
-    sums = cv2.filter2D(bayer, cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS, borderType=cv2.BORDER_CONSTANT)
-    return cv2.divide(sums, _neighbour_counts(bayer.shape), dst=sums)
-
-
-@functools.lru_cache(maxsize=8)
-def _neighbour_counts(shape: tuple[int, int]) -> np.ndarray:
-    """How many same-colour neighbours each sample of an array of ``shape`` has inside it (8, fewer at the edges);
-    one array per strip shape, read only."""
-    counts = cv2.filter2D(np.ones(shape, np.float32), cv2.CV_32F, _SAME_COLOUR_NEIGHBOURS,
-                          borderType=cv2.BORDER_CONSTANT)
-    counts.flags.writeable = False
-    return counts
 
 
 def _sums(shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> tuple[int, float, float]:

@@ -37,7 +37,8 @@ import numpy as np
 
 from hdrcam.errors import InputError
 from hdrcam.capture.notches import true_exposure_s
-from hdrcam.hdr.exposure_ratios import NEIGHBOUR_ROWS, estimate_exposures
+from hdrcam.hdr.exposure_ratios import estimate_exposures
+from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS
 from hdrcam.io.raw import RawFrame
 from hdrcam.io.raw_clipping import is_in_top_part, sensor_white_dn, tiled
 from hdrcam.parallel import strips, worker_threads

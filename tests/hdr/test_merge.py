@@ -86,7 +86,7 @@ def test_ratios_at_high_iso_are_not_biased_by_selecting_on_the_samples_own_noise
 
 
 def test_a_samples_neighbour_mean_leaves_the_sample_out_at_the_edges_too():
-    from hdrcam.hdr.exposure_ratios import neighbour_mean
+    from hdrcam.hdr.neighbour_mean import neighbour_mean
 
     impulses = np.zeros((12, 12), np.float32)
     for row, column in ((1, 3), (1, 1), (0, 0), (6, 6), (11, 10)):
