@@ -71,15 +71,29 @@ def exr_orientation(attributes: dict[str, Any]) -> int:
     return value if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 8 else 1
 
 
+_UNREADABLE = (RuntimeError, UnicodeDecodeError, ValueError, TypeError, OSError, MemoryError)  # OpenEXR's raises
+
+
 def read_exr_attributes(path: Path) -> dict[str, Any]:
     """An EXR's user attributes, from its header alone. InputError for a missing or damaged file."""
     try:
-        with _openexr_quiet(), OpenEXR.File(io.BytesIO(Path(path).read_bytes()), header_only=True) as header_file:
-            header = dict(header_file.header())
-    except (RuntimeError, UnicodeDecodeError, ValueError, TypeError, OSError) as error:
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})") from None
+        return _user_attributes(_header(Path(path).read_bytes()))
+    except _UNREADABLE as error:
+        raise _unreadable(path, error) from None
+
+
+def _header(data: bytes) -> dict[str, Any]:
+    with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
+        return dict(header_file.header())
+
+
+def _user_attributes(header: dict[str, Any]) -> dict[str, Any]:
     return {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
+
+
+def _unreadable(path: Path, error: Exception) -> InputError:
+    reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+    return InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})")
 
 
 def read_exr(path: Path) -> ExrImage:
@@ -89,16 +103,13 @@ def read_exr(path: Path) -> ExrImage:
         raise InputError(f"{path}: no such file")
     data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     try:
-        with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
-            header = dict(header_file.header())
-        _check_decoded_size(path, header)
+        _check_decoded_size(path, _header(data))
         with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
             header = dict(exr_file.header())
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
                             for name, channel in exr_file.channels().items()}
-    except (RuntimeError, UnicodeDecodeError, ValueError, TypeError, OSError, MemoryError) as error:
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})") from None
+    except _UNREADABLE as error:
+        raise _unreadable(path, error) from None
     if not raw_channels:
         raise InputError(f"{path}: EXR file has no channels")
     window_min, window_max = header["dataWindow"]
@@ -113,8 +124,7 @@ def read_exr(path: Path) -> ExrImage:
         except ValueError as error:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
-    attributes = {key: value for key, value in header.items() if key not in _STRUCTURAL_KEYS}
-    return ExrImage(channels=channels, attributes=attributes, source=Path(path))
+    return ExrImage(channels=channels, attributes=_user_attributes(header), source=Path(path))
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
