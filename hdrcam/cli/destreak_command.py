@@ -46,7 +46,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.preview import display_oriented, tonemap_rgb
     from hdrcam.recon.destreak import destreak_frame
     from hdrcam.recon.windshield_fit import subtract_windshield_streaks
-    from hdrcam.train.checkpoint import load_model, read_checkpoint
+    from hdrcam.train.checkpoint import load_model
 
     network = arguments.method == "network"
     if not network:
@@ -55,11 +55,11 @@ def run(arguments: argparse.Namespace) -> int:
                 raise InputError(f"{option} applies only to --method network (--method fit, the default, "
                                  "uses no network)")
     checkpoint = arguments.checkpoint or SHIPPED_WINDSHIELD
-    if network and read_checkpoint(checkpoint)["config"].get("psf") != "windshield":
+    model = load_model(checkpoint) if network else None  # read once: its fixed PSF says what it was trained for
+    if model is not None and model.fixed_psf != "windshield":
         raise InputError(f"{checkpoint} was not trained on windshield streaks (design --psf windshield)")
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
     check_outputs_of_inputs(zip(arguments.inputs, outputs), overwrite=arguments.overwrite, inputs=arguments.inputs)
-    model = load_model(checkpoint) if network else None
     frames = [read_ldr_frame_and_orientation(source) for source in arguments.inputs]  # RAW: sensor orientation
     for source, (frame, orientation), (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
