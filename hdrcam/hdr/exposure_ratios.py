@@ -1,14 +1,26 @@
 """True exposure times of a bracket, estimated from its data: ratios of adjacent frames, anchored to the labels.
 
-The ratio of frame k+1 to k is sum(y_k+1) / sum(y_k) over pixels unclipped in both whose shorter-frame signal,
-predicted by the mean of its eight same-colour neighbours (hdrcam.hdr.neighbour_mean), is below RATIO_HEADROOM of the
-clip level divided by the ratio, and which carry signal: a third frame (k+2, else k-1) is above SIGNAL_FLOOR
-read-noise sigmas there or clipped. The bound and the signal test use values whose noise is independent of
-the pixel's own two samples: a bound on a sample's own noisy value biases the sums. Bounding y_k itself made the
-ratio 26.1 for a true 7.8 at ISO 25600 (a bound of a few electrons: the samples that read high were the ones
-dropped) and 9.1 for 7.9 at ISO 6400; from the neighbours, 7.7 and 7.9. The third frame drops the empty
-background, whose noise would swamp a point source. The upper bound depends on the ratio, so each ratio is
-refined up to REFINEMENTS times, starting from the labels.
+The ratio of frame k+1 to k is taken over pixels unclipped in both whose shorter-frame signal, predicted by the
+mean of its eight same-colour neighbours (hdrcam.hdr.neighbour_mean), lies below RATIO_HEADROOM of the clip
+level divided by the ratio and ADC_ZERO_SIGMAS read-noise sigmas above the ADC's zero (0 DN; a black level of 0
+puts it at black, a high ISO's noise reaches it from a black of 512: the data clip the noise there, and the
+clipped samples' mean lies above their signal - by 0.4 % at 2 sigmas, 0.01 % at 3), and which carry signal in a
+third frame (k+2, else k-1: above SIGNAL_FLOOR sigmas there, or clipped). The bounds and the signal tests use
+values whose noise is independent of the pixel's own two samples: a bound on a sample's own noisy value biases
+the sums. Bounding y_k itself made the ratio 26.1 for a true 7.8 at ISO 25600 (a bound of a few electrons: the
+samples that read high were the ones dropped) and 9.1 for 7.9 at ISO 6400; from the neighbours, 7.7 and 7.9. The
+third frame drops the empty background, whose noise would swamp a point source.
+
+The estimate is the instrumental-variable slope cov(z, y_k+1) / cov(z, y_k), the instrument z the pixel's own
+sample in the third frame (its noise is independent of both samples', and it is as sharp as they are: the
+neighbour mean, blurred over the CFA's spacing, made the ratios a fifth noisier on 96 x 128 crops; a two-frame
+bracket has only the neighbour mean): a black level off by a fraction of a DN in either frame, which biases a
+ratio of sums by that fraction over the shorter frame's mean signal (one DN over a frame 2 DN above black: 36 %
+off, for every pixel of the image through the scale; +-1 DN, 5-9 % on a simulated night bracket), cancels from
+it. A scene without the contrast to carry a slope (cov(z, y_k) below MIN_CONTRAST of the product of the means: a
+flat field) gives the ratio of the sums, sum(y_k+1) / sum(y_k), instead, and says so. The upper bound depends on
+the ratio, so each ratio is refined up to REFINEMENTS times, starting from the labels. A ratio more than
+IMPLAUSIBLE_STOPS from its label is used, with a warning.
 
 Signals are in DN above black; exposures in seconds.
 
@@ -16,16 +28,17 @@ Speed: one pass over strips of rows (a thread pool's map) serves every refinemen
 selected pixels whose neighbour mean lies below the labelled bound divided by BOUND_BAND, and keeps those
 within BOUND_BAND of that bound; a refinement whose bound stays in the band adds the kept pixels below
 it to those sums. A bound outside the band (a ratio off its label by more than BOUND_BAND) costs one more
-pass for that refinement. A strip's sums are float32 sums of products by numpy's einsum (relative error
-~1e-7; not BLAS, whose own threads would compete with the pool's), added over strips in float64, as are the
-kept pixels' sums.
+pass for that refinement. The sums (count, and of y_k, y_k+1, z, z y_k, z y_k+1) are float64 sums of float32
+products (OpenCV; not BLAS, whose own threads would compete with the pool's).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
+import cv2
 import numpy as np
 
 from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS, neighbour_mean
@@ -35,18 +48,25 @@ RATIO_HEADROOM = 0.7  # of the clip level, for the shorter frame of a pair
 SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame
 REFINEMENTS = 3
 BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
+ADC_ZERO_SIGMAS = 2.0  # the shorter frame's prediction above the ADC's zero (module docstring)
+MIN_CONTRAST = 0.05  # cov(z, y_k) over mean(z) mean(y_k) below which the slope gives way to the ratio of sums
+IMPLAUSIBLE_STOPS = 0.5  # a working shutter is off its label by a few per cent; half a stop is 41 %
+SUMS = 6  # per pair: count, and the sums of y_k, y_k+1, z, z y_k, z y_k+1
 
 StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
 
 def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_s: np.ndarray, threshold_dn: float,
-                       noise_floor_dn: float, notes: list[str], pool: ThreadPoolExecutor) -> np.ndarray:
+                       noise_floor_dn: float, notes: list[str], pool: ThreadPoolExecutor, *, black_dn: float = np.inf
+                       ) -> np.ndarray:
     """Estimated exposure per frame (seconds, shortest first; geometric mean equal to the labels').
 
     ``strip_data(rows)``: every frame's float32 signal (DN above black) on those rows and its samples at or
     above the clip threshold ``threshold_dn`` (bool; not dilated: each sample stands alone here);
-    ``noise_floor_dn``: the read noise of one signal. One line per pair is appended to ``notes``.
+    ``noise_floor_dn``: the read noise of one signal; ``black_dn``: the black level, the signal of the ADC's zero
+    below it (the default: far). One line per pair is appended to ``notes``.
     """
+    floor_dn = ADC_ZERO_SIGMAS * noise_floor_dn - black_dn  # the shorter frame's prediction, clear of the ADC's zero
     pairs = len(labelled_s) - 1
     labelled = [float(labelled_s[k + 1] / labelled_s[k]) for k in range(pairs)]
 
@@ -68,18 +88,19 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
 
     def first_pass(rows: slice) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
         signals, clipped, predictions = strip_and_predictions(rows)
-        below_band = np.zeros((pairs, 3), np.float64)
+        below_band = np.zeros((pairs, SUMS), np.float64)
         kept = []
         for k, (low, high) in enumerate(bands):
-            selected = _selected(signals, clipped, k, noise_floor_dn)
             predicted = predictions[k]
+            selected = _selected(signals, clipped, predicted, k, noise_floor_dn, floor_dn)
             below = np.less(predicted, low)
             below &= selected
-            below_band[k] = _sums(signals[k], signals[k + 1], below)
+            instrument = _instrument(signals, predicted, k)
+            below_band[k] = _sums(instrument, signals[k], signals[k + 1], below)
             inside = np.greater_equal(predicted, low)
             inside &= np.less(predicted, high)
             inside &= selected
-            kept.append((predicted[inside], signals[k][inside], signals[k + 1][inside]))
+            kept.append((predicted[inside], instrument[inside], signals[k][inside], signals[k + 1][inside]))
         return below_band, kept
 
     strip_results = list(pool.map(first_pass, row_strips))
@@ -89,76 +110,119 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
     def full_pass(bounds: dict[int, float]) -> np.ndarray:
         def sums(rows: slice) -> np.ndarray:
             signals, clipped, predictions = strip_and_predictions(rows)
-            totals = np.zeros((pairs, 3), np.float64)
+            totals = np.zeros((pairs, SUMS), np.float64)
             for k, bound in bounds.items():
                 valid = np.less(predictions[k], bound)
-                valid &= _selected(signals, clipped, k, noise_floor_dn)
-                totals[k] = _sums(signals[k], signals[k + 1], valid)
+                valid &= _selected(signals, clipped, predictions[k], k, noise_floor_dn, floor_dn)
+                totals[k] = _sums(_instrument(signals, predictions[k], k), signals[k], signals[k + 1], valid)
             return totals
 
         return np.sum(list(pool.map(sums, row_strips)), axis=0)
 
-    ratios, counts, refining = list(labelled), [0] * pairs, list(range(pairs))
+    ratios, refining = list(labelled), list(range(pairs))
+    final = np.zeros((pairs, SUMS))  # each pair's sums at its last refinement
     unestimated: dict[int, str] = {}  # pair -> why its labelled ratio is used
     for _ in range(REFINEMENTS):
         bounds = {k: bound_dn(ratios[k]) for k in refining}
         outside = {k: bound for k, bound in bounds.items() if not bands[k][0] <= bound <= bands[k][1]}
-        totals = full_pass(outside) if outside else np.zeros((pairs, 3))
+        totals = full_pass(outside) if outside else np.zeros((pairs, SUMS))
         in_band = {k: bound for k, bound in bounds.items() if k not in outside}
         kept_totals = np.sum(list(pool.map(lambda strip_kept: _kept_sums(strip_kept, in_band), kept)), axis=0)
         for k in in_band:
             totals[k] = below_band[k] + kept_totals[k]
         for k in list(refining):
-            counts[k] = int(totals[k, 0])
-            if counts[k] < MIN_RATIO_SAMPLES:
-                unestimated[k] = f"only {counts[k]} pixels usable in both"
-            elif totals[k, 1] <= 0:
-                unestimated[k] = f"the shorter frame's {counts[k]} usable pixels hold no signal above black"
-            elif totals[k, 2] <= totals[k, 1]:  # no bound follows from a longer frame that is no brighter
-                unestimated[k] = (f"the longer frame is no brighter over {counts[k]} usable pixels (ratio "
-                                  f"{totals[k, 2] / totals[k, 1]:.4f})")
-            else:
-                ratios[k] = float(totals[k, 2] / totals[k, 1])
+            final[k] = totals[k]
+            ratio, why_not = _ratio(totals[k])
+            if ratio is not None:
+                ratios[k] = ratio
                 continue
+            unestimated[k] = why_not
             ratios[k] = labelled[k]
             refining.remove(k)
     for k in range(pairs):
         if k in unestimated:
             notes.append(f"frames {k}-{k + 1}: {unestimated[k]}; using the labelled ratio {labelled[k]:.4f}")
-        else:
-            notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {counts[k]} pixels (labels say "
-                         f"{labelled[k]:.4f})")
+            continue
+        how = "" if _has_contrast(final[k]) else \
+            " (the frames' sums: too little contrast to cancel a black-level error)"
+        notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {int(final[k, 0])} pixels{how} (labels say "
+                     f"{labelled[k]:.4f})")
+        stops = float(np.log2(ratios[k] / labelled[k]))
+        if abs(stops) > IMPLAUSIBLE_STOPS:
+            warnings.warn(f"frames {k}-{k + 1}: their data give an exposure ratio of {ratios[k]:.4g} where the labels "
+                          f"say {labelled[k]:.4g} ({stops:+.1f} stops), and the image's scale follows it: a "
+                          "mislabelled exposure (bulb, a rounded long one), flickering light or a wrong black level?")
     relative = np.concatenate([[1.0], np.cumprod(ratios)])
     scale = np.exp(np.mean(np.log(labelled_s)) - np.mean(np.log(relative)))
     return relative * scale
 
 
+def _ratio(totals: np.ndarray) -> tuple[float | None, str]:
+    """A pair's ratio from its sums (module docstring), or None and why none follows from them."""
+    count, shorter, longer, predicted, predicted_shorter, predicted_longer = totals
+    if count < MIN_RATIO_SAMPLES:
+        return None, f"only {int(count)} pixels usable in both"
+    if _has_contrast(totals):
+        numerator = predicted_longer - predicted * longer / count
+        denominator = predicted_shorter - predicted * shorter / count
+    else:
+        numerator, denominator = longer, shorter
+        if denominator <= 0:
+            return None, f"the shorter frame's {int(count)} usable pixels hold no signal above black"
+    if numerator <= denominator:  # no bound follows from a longer frame that is no brighter
+        return None, (f"the longer frame is no brighter over {int(count)} usable pixels (ratio "
+                      f"{numerator / denominator:.4f})")
+    return float(numerator / denominator), ""
+
+
+def _has_contrast(totals: np.ndarray) -> bool:
+    """True when the instrument varies enough for the slope: cov(z, y_k) >= MIN_CONTRAST mean(z) mean(y_k)."""
+    count, shorter, _, predicted, predicted_shorter, _ = totals
+    product_of_means = predicted * shorter / count ** 2
+    return product_of_means > 0 and predicted_shorter / count - product_of_means >= MIN_CONTRAST * product_of_means
+
+
 def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]], bounds_dn: dict[int, float]
                ) -> np.ndarray:
-    """Per pair k of ``bounds_dn``: (count, sum of the shorter, sum of the longer frame's signal) over a strip's
-    kept pixels of that pair (``strip_kept[k]``: the shorter frame's neighbour mean and both frames' float32
-    signals) whose neighbour mean is below ``bounds_dn[k]``, summed in float64 (einsum casting to float64 as it
-    goes)."""
-    totals = np.zeros((len(strip_kept), 3), np.float64)
+    """Per pair k of ``bounds_dn``: the SUMS over a strip's kept pixels of that pair (``strip_kept[k]``: the
+    shorter frame's neighbour mean and both frames' float32 signals) whose neighbour mean is below
+    ``bounds_dn[k]``."""
+    totals = np.zeros((len(strip_kept), SUMS), np.float64)
     for k, bound in bounds_dn.items():
-        predicted, shorter, longer = strip_kept[k]
-        below = np.less(predicted, bound).view(np.uint8)  # as 0 / 1 weights: a third of a selection's time
-        totals[k] = (np.count_nonzero(below), np.einsum("i,i->", shorter, below, dtype=np.float64),
-                     np.einsum("i,i->", longer, below, dtype=np.float64))
+        predicted, instrument, shorter, longer = strip_kept[k]
+        totals[k] = _sums(instrument, shorter, longer, np.less(predicted, bound))
     return totals
 
 
-def _sums(shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> tuple[int, float, float]:
-    """(count, sum of ``shorter``, sum of ``longer``) over ``valid`` (float32 products summed by einsum)."""
+def _sums(instrument: np.ndarray, shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The SUMS (count, sums of ``shorter``, ``longer``, ``instrument`` and of ``instrument`` times each) over
+    ``valid``: float32 products summed in float64 by OpenCV (numpy's einsum sums in float32, whose rounding the
+    covariances' differences magnified to 2e-6 of the ratios between strip sizes)."""
     weights = valid.astype(np.float32)
-    return (np.count_nonzero(valid), float(np.einsum("ij,ij->", shorter, weights)),
-            float(np.einsum("ij,ij->", longer, weights)))
+    weighted = cv2.multiply(instrument, weights)
+    return np.array([np.count_nonzero(valid),
+                     cv2.sumElems(cv2.multiply(shorter, weights))[0],
+                     cv2.sumElems(cv2.multiply(longer, weights))[0],
+                     cv2.sumElems(weighted)[0],
+                     cv2.sumElems(cv2.multiply(shorter, weighted))[0],
+                     cv2.sumElems(cv2.multiply(longer, weighted))[0]])
 
 
-def _selected(signals: list[np.ndarray], clipped: list[np.ndarray], k: int, noise_floor_dn: float) -> np.ndarray:
-    """Strip bool: unclipped in frames k and k+1 and carrying signal in a third frame (or clipped there)."""
+def _instrument(signals: list[np.ndarray], predicted: np.ndarray, k: int) -> np.ndarray:
+    """Pair k's instrument on a strip: the third frame's signal (k+2, else k-1), else ``predicted`` (the shorter
+    frame's neighbour mean)."""
+    other = k + 2 if k + 2 < len(signals) else k - 1
+    return signals[other] if other >= 0 else predicted
+
+
+def _selected(signals: list[np.ndarray], clipped: list[np.ndarray], predicted: np.ndarray, k: int,
+              noise_floor_dn: float, floor_dn: float) -> np.ndarray:
+    """Strip bool: unclipped in frames k and k+1, the shorter frame's prediction ``predicted`` at ``floor_dn``
+    or above, and signal in a third frame (or clipped there)."""
     selected = np.logical_or(clipped[k], clipped[k + 1])
     np.logical_not(selected, out=selected)
+    if floor_dn > -np.inf:
+        selected &= predicted >= floor_dn
     other = k + 2 if k + 2 < len(signals) else k - 1
     if other >= 0:
         selected &= (signals[other] > SIGNAL_FLOOR * noise_floor_dn) | clipped[other]
