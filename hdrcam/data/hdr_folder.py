@@ -11,6 +11,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
+from hdrcam.io.tiff_image import read_tiff_samples
 
 HDR_SUFFIXES = (".exr", ".hdr")
 
@@ -27,20 +28,31 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
         exr = read_exr(path)
         image = exr.rgb() if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels) \
             else np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
+    elif path.suffix.lower() in (".tif", ".tiff"):
+        image = read_tiff_samples(path)
+        if image.ndim != 3 or image.shape[2] < 3:
+            raise InputError(f"{path}: {'one sample' if image.ndim == 2 else f'{image.shape[2]} samples'} per pixel: "
+                             "not an RGB image")
+        _refuse_display_image(path, image)
+        image = image[..., :3].astype(np.float32)
     else:
         with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
             image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:
             raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
-        if image.dtype in (np.uint8, np.uint16):
-            raise InputError(f"{path}: {8 * image.dtype.itemsize}-bit pixels: a display image, gamma-encoded and "
-                             "clipped, not linear radiance; give an OpenEXR, Radiance .hdr or float TIFF")
+        _refuse_display_image(path, image)
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
     if not np.isfinite(image).all():
         raise InputError(f"{path}: image has NaN or Inf pixels")
     if warn_negative:
         warn_negative_radiance(path, image)
     return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light
+
+
+def _refuse_display_image(path: Path, image: np.ndarray) -> None:
+    if image.dtype.kind in "ui":
+        raise InputError(f"{path}: {8 * image.dtype.itemsize}-bit pixels: a display image, gamma-encoded and "
+                         "clipped, not linear radiance; give an OpenEXR, Radiance .hdr or float TIFF")
 
 
 NEGATIVE_TOLERANCE = 0.01  # of the image's peak: resampling filters ring a little below zero

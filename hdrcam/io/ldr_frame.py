@@ -28,6 +28,7 @@ from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
+from hdrcam.io.tiff_image import read_tiff_samples
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
@@ -56,14 +57,11 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
                          "16-bit TIFF/PNG")
     elif suffix in IMAGE_SUFFIXES:
-        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
-            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is None or image.ndim != 3 or image.shape[2] < 3:
-            raise InputError(f"{path}: cannot read as an RGB image")
+        image = _rgb_samples(path, suffix)
         if image.dtype in (np.float32, np.float64):
-            rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32)  # linear, as EXR
+            rgb = image.astype(np.float32)  # linear, as EXR
         elif image.dtype == np.uint16:
-            rgb = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB).astype(np.float32) / 65535.0
+            rgb = image.astype(np.float32) / 65535.0
             _warn_plateau_below_white(path, image)
         else:
             raise InputError(f"{path}: {image.dtype} pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
@@ -82,6 +80,20 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
 
 
+def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
+    """A TIFF's or PNG's H x W x 3 samples in R, G, B order and their stored type (extra samples dropped)."""
+    if suffix == ".png":
+        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if image is not None and image.ndim == 3 and image.shape[2] >= 3:
+            image = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB)
+    else:
+        image = read_tiff_samples(path)
+    if image is None or image.ndim != 3 or image.shape[2] < 3:
+        raise InputError(f"{path}: cannot read as an RGB image")
+    return image[..., :3]
+
+
 PLATEAU_MIN_PIXELS = 16  # pixels sharing the brightest value, below white, that look like clipping
 PLATEAU_BELOW_WHITE = 0.99  # of 65535: brighter maxima count as white (reconstruct's clip level)
 
@@ -89,8 +101,8 @@ PLATEAU_BELOW_WHITE = 0.99  # of 65535: brighter maxima count as white (reconstr
 def _warn_plateau_below_white(path: Path, image: np.ndarray) -> None:
     """Warn when a 16-bit frame's brightest value, below 65535, holds many pixels: clipping at a lower white
     (14-bit data in a 16-bit file reaches 16383), which reconstruct does not see as clipped."""
-    brightest = int(image[..., :3].max())
-    count = int(np.count_nonzero(image[..., :3].max(axis=-1) == brightest))
+    brightest = int(image.max())
+    count = int(np.count_nonzero(image.max(axis=-1) == brightest))
     if brightest < PLATEAU_BELOW_WHITE * 65535 and count >= PLATEAU_MIN_PIXELS:
         warnings.warn(f"{path}: {count} pixels share the brightest value, {brightest} of 65535 - clipping below "
                       "white? hdrcam takes 65535 as white, so they are not treated as clipped; rescale the file so "

@@ -52,3 +52,34 @@ def test_an_8_bit_image_is_not_taken_as_an_hdr_scene_and_a_float_tiff_is(tmp_pat
         read_hdr_image(tmp_path / "scene.png")
     cv2.imwrite(str(tmp_path / "scene.tif"), cv2.cvtColor(_gradient() * 4000, cv2.COLOR_RGB2BGR))
     assert np.allclose(read_hdr_image(tmp_path / "scene.tif"), _gradient() * 4000)
+
+
+@pytest.mark.parametrize("compression", [None, "zlib"])
+def test_a_tiff_stored_plane_by_plane_reads_as_the_same_image(tmp_path, compression):
+    """A "per channel" TIFF (PlanarConfiguration 2): OpenCV handed its planes back as if interleaved - a 16-bit
+    frame read up to 0.92 of white off, a float scene by its peak - with no error."""
+    import tifffile
+
+    counts = (_gradient() * 60000).astype(np.uint16)
+    scene = _gradient() * 40.0
+    for name, image in (("frame", counts), ("scene", scene)):
+        tifffile.imwrite(tmp_path / f"{name}-planar.tif", np.moveaxis(image, -1, 0), photometric="rgb",
+                         planarconfig="separate", compression=compression)
+        tifffile.imwrite(tmp_path / f"{name}-contiguous.tif", image, photometric="rgb", compression=compression)
+    for layout in ("planar", "contiguous"):
+        np.testing.assert_array_equal(read_ldr_frame(tmp_path / f"frame-{layout}.tif"),
+                                      counts.astype(np.float32) / 65535.0)
+        np.testing.assert_array_equal(read_hdr_image(tmp_path / f"scene-{layout}.tif"), scene)
+
+
+def test_a_tiff_that_is_not_rgb_or_not_a_tiff_is_refused_in_one_line(tmp_path):
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "grey.tif", np.ones((8, 8), np.float32))
+    with pytest.raises(InputError, match=r"grey.tif: one sample per pixel: not an RGB image"):
+        read_hdr_image(tmp_path / "grey.tif")
+    with pytest.raises(InputError, match=r"grey.tif: cannot read as an RGB image"):
+        read_ldr_frame(tmp_path / "grey.tif")
+    (tmp_path / "text.tif").write_text("not a tiff")
+    with pytest.raises(InputError, match=r"text.tif: cannot decode as TIFF"):
+        read_ldr_frame(tmp_path / "text.tif")
