@@ -2,7 +2,12 @@
 
 Reading returns float32 channels at full resolution. Luminance-chroma files (Y, RY, BY, as written by
 OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
-(Rec. 709 / D65 when absent). Damaged files raise :class:`~hdrcam.errors.InputError` with one line.
+(Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
+hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
+Rec. 2020, ...) is converted by colour-science's RGB-to-RGB matrix with Bradford adaptation between the white
+points (the attribute then no longer describes the pixels and is dropped); primaries that span no gamut (all
+zero, as some writers store) count as absent. Damaged files raise :class:`~hdrcam.errors.InputError` with
+one line.
 
 Writing is atomic, float32 by default or half on request, ZIP-compressed by default or uncompressed on
 request (both are part of every OpenEXR version); half output refuses values beyond the half range (65504)
@@ -124,7 +129,41 @@ def read_exr(path: Path) -> ExrImage:
         except ValueError as error:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
-    return ExrImage(channels=channels, attributes=_user_attributes(header), source=Path(path))
+    attributes = _user_attributes(header)
+    matrix = _to_rec709_matrix(header.get("chromaticities"))
+    if matrix is not None and {"R", "G", "B"} <= channels.keys():
+        rgb = np.stack([channels[name] for name in "RGB"], axis=-1) @ matrix.T.astype(np.float32)
+        channels.update(R=rgb[..., 0].copy(), G=rgb[..., 1].copy(), B=rgb[..., 2].copy())
+        attributes.pop("chromaticities", None)
+    return ExrImage(channels=channels, attributes=attributes, source=Path(path))
+
+
+CHROMATICITY_TOLERANCE = 1e-3  # of x, y: Rec. 709 / D65 as stored in 32-bit floats or rounded by a writer
+
+
+def _to_rec709_matrix(chromaticities) -> np.ndarray | None:
+    """3 x 3 matrix from RGB of these (red x, y, green x, y, blue x, y, white x, y) chromaticities to linear
+    Rec. 709 / D65, or None when they are Rec. 709 / D65 already, absent, or span no gamut."""
+    if chromaticities is None:
+        return None
+    values = np.asarray(chromaticities, np.float64)
+    if values.shape != (8,) or not np.isfinite(values).all() or \
+            np.abs(values - _REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
+        return None
+    primaries, white = values[:6].reshape(3, 2), values[6:]
+    xyz_columns = np.stack([np.append(xy, 1 - xy.sum()) / xy[1] if xy[1] != 0 else np.full(3, np.nan)
+                            for xy in primaries], axis=1)
+    if not np.isfinite(xyz_columns).all() or abs(np.linalg.det(xyz_columns)) < 1e-6 or not white[1] > 0:
+        return None  # no gamut (all zero, or collinear primaries): taken as absent
+    import warnings
+
+    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
+        warnings.simplefilter("ignore")
+        import colour
+
+    source = colour.RGB_Colourspace("EXR chromaticities", primaries, white)
+    return colour.matrix_RGB_to_RGB(source, colour.RGB_COLOURSPACES["ITU-R BT.709"],
+                                    chromatic_adaptation_transform="Bradford")
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"

@@ -154,3 +154,28 @@ def test_colour_groups_and_masks_are_written_without_copies_and_read_back_exactl
     with pytest.raises(ValueError, match="H x W x 3"):
         write_exr_channels(tmp_path / "four.exr", {"RGBA": np.zeros((2, 2, 4), np.float32)})
     assert not (tmp_path / "nan.exr").exists() and not (tmp_path / "four.exr").exists()
+
+
+AP0 = (0.7347, 0.2653, 0.0, 1.0, 0.0001, -0.077, 0.32168, 0.33767)  # ACES 2065-1 primaries and white
+
+
+def test_rgb_in_other_primaries_is_read_as_rec_709(tmp_path):
+    """A file whose chromaticities attribute names ACES AP0 (the openexr-images Carrots.exr does) was read as if its
+    numbers were Rec. 709: a pure Rec. 709 red stored in AP0 came back (0.44, 0.09, 0.02). AP0 -> Rec. 709 with
+    Bradford adaptation (ACES's published matrix, to 4 digits): columns (2.5217, -0.2765, -0.0154) for AP0
+    red, (-1.1341, 1.3727, -0.1530) green, (-0.3876, -0.0962, 1.1684) blue."""
+    expected = np.array([[2.5217, -1.1341, -0.3876], [-0.2765, 1.3727, -0.0962], [-0.0154, -0.1530, 1.1684]])
+    pixels = np.eye(3, dtype=np.float32)[None]  # AP0 red, green, blue in a 1 x 3 image
+    header = {"type": OpenEXR.scanlineimage, "chromaticities": AP0}
+    OpenEXR.File(header, {"RGB": pixels}).write(str(tmp_path / "ap0.exr"))
+    image = read_exr(tmp_path / "ap0.exr")
+    np.testing.assert_allclose(image.rgb()[0], expected.T, atol=2e-4)
+    assert "chromaticities" not in image.attributes  # no longer what the pixels are in
+
+
+@pytest.mark.parametrize("chromaticities", [(0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290), (0.0,) * 8])
+def test_rec_709_or_degenerate_chromaticities_leave_the_pixels_as_stored(tmp_path, chromaticities):
+    pixels = np.random.default_rng(0).uniform(0, 4, (4, 5, 3)).astype(np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": chromaticities}, {"RGB": pixels}).write(
+        str(tmp_path / "file.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "file.exr").rgb(), pixels)
