@@ -2,7 +2,8 @@
 
 A bracket is a run of frames from one camera (for files that name none, one sensor as LibRaw reports it:
 ``hdrcam.io.raw.sensor_fingerprint``) at one ISO, aperture and frame size, taken close together
-(no gap longer than ``max_gap_s`` plus the previous exposure), with distinct exposure times; a repeated
+(no gap longer than ``max_gap_s`` plus twice the previous exposure: a long exposure is followed by an in-camera
+dark frame as long, Long Exposure NR, on by default on Sony bodies), with distinct exposure times; a repeated
 exposure starts the next bracket. Brackets shot alternately (e.g. at two ISOs) are separated by their
 settings. Every file of the folder is offered to LibRaw (no list of suffixes): one it does not open, or
 that fits no bracket, is reported with the reason - never silently dropped. A byte-identical copy of another
@@ -63,10 +64,15 @@ def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP
     return IngestResult(brackets, report)
 
 
+BUSY_EXPOSURES = 2.0  # the exposure and the long-exposure noise reduction's dark frame, as long
+
+
 def _too_late(previous: RawMetadata, frame: RawMetadata, max_gap_s: float) -> bool:
+    """True when ``frame`` (EXIF times: when each exposure began) began more than ``max_gap_s`` after the
+    camera could have been ready again: BUSY_EXPOSURES times the previous exposure after it began."""
     if previous.timestamp is None or frame.timestamp is None:
         return False
-    return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + previous.exposure_s
+    return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + BUSY_EXPOSURES * previous.exposure_s
 
 
 def _same_exposure(a: RawMetadata, b: RawMetadata) -> bool:
@@ -84,7 +90,8 @@ def _close(current: list[RawMetadata], group: list[RawMetadata], brackets: list,
         twin = next((other for other in group if other is not frame and _same_exposure(frame, other)
                      and not _too_late(*sorted((frame, other), key=_taken), max_gap_s)), None)
         reason = (f"same exposure as {twin.path.name}, and a bracket needs distinct exposures" if twin
-                  else f"no other frame with these settings within {max_gap_s:g} s")
+                  else f"no other frame with these settings within {max_gap_s:g} s of the camera being ready "
+                       "(twice an exposure after it began)")
         report.append(f"not in a bracket: {frame.path.name} ({settings_text(frame)}, "
                       f"{exposure_label(frame.exposure_s)}): {reason}")
 

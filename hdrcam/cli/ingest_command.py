@@ -16,7 +16,8 @@ def register(commands) -> None:
     parser.add_argument("folder", type=Path, help="folder of RAW files (ARW, DNG, ...)")
     parser.add_argument("--out", type=Path, default=None, help="where the manifests go (default: the folder)")
     parser.add_argument("--max-gap", type=positive_float, default=DEFAULT_MAX_GAP_S, metavar="S",
-                        help=f"longest pause inside a bracket, after the exposure (default {DEFAULT_MAX_GAP_S:g} s)")
+                        help=f"longest pause inside a bracket, after the exposure and a dark frame as long "
+                             f"(long-exposure noise reduction) (default {DEFAULT_MAX_GAP_S:g} s)")
     parser.add_argument("--overwrite", action="store_true", help="replace existing manifests")
     parser.set_defaults(run=run)
 

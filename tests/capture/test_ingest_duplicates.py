@@ -14,12 +14,12 @@ START = dt.datetime(2026, 5, 1, 21, 0, 0)
 EXPOSURES = (1 / 4000, 1 / 500, 1 / 60, 1 / 8, 1.0)
 
 
-def _write_frames(folder, exposures, start=START, prefix="frame"):
+def _write_frames(folder, exposures, start=START, prefix="frame", starts_s=None):
     _, simulated = small_camera("sim")
     for k, exposure in enumerate(exposures):
         simulated.set_exposure(exposure, iso=100)
         simulated.write_frame(folder / f"{prefix}-{k:02d}.dng", simulated.render_dn(), simulated.settings(),
-                              start + dt.timedelta(seconds=k))
+                              start + dt.timedelta(seconds=k if starts_s is None else starts_s[k]))
 
 
 def test_a_copy_of_a_frame_is_named_as_a_duplicate_and_the_bracket_stays_whole(tmp_path, capsys):
@@ -62,5 +62,13 @@ def test_distinct_frames_refused_for_sharing_an_exposure_say_so(tmp_path):
     assert first.startswith("not in a bracket: frame-00.dng") and second.startswith("not in a bracket: frame-01.dng")
     assert first.endswith("same exposure as frame-01.dng, and a bracket needs distinct exposures")
     assert second.endswith("same exposure as frame-00.dng, and a bracket needs distinct exposures")
-    assert late.startswith("not in a bracket: late-00.dng") and late.endswith("no other frame with these settings "
-                                                                              "within 10 s")
+    assert late.startswith("not in a bracket: late-00.dng") and late.endswith(
+        "no other frame with these settings within 10 s of the camera being ready (twice an exposure after it began)")
+
+
+def test_a_long_exposure_bracket_with_in_camera_noise_reduction_stays_one_bracket(tmp_path):
+    """Long Exposure NR (on by default on Sony bodies) follows each exposure with a dark frame as long: 2, 4, 8,
+    15 and 30 s shots begin 5, 9, 17 and 33 s apart. The 30 s frame was split off (33 s > 10 s + 15 s)."""
+    _write_frames(tmp_path, (2, 4, 8, 15, 30), starts_s=(0, 5, 14, 31, 64))
+    result = ingest_folder(tmp_path)
+    assert [len(bracket) for bracket in result.brackets] == [5] and result.report == []
