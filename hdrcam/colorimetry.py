@@ -1,9 +1,13 @@
-"""Colour matrices: sRGB (D65) <-> CIE XYZ, the Sony A7's camera matrix, camera RGB <-> linear sRGB."""
+"""Colour matrices: sRGB (D65) <-> CIE XYZ, the Sony A7's camera matrix, camera RGB <-> linear sRGB, other
+primaries -> Rec. 709."""
 
 from __future__ import annotations
 
 import numpy as np
 
+# red x, y, green x, y, blue x, y, white x, y of Rec. 709 / sRGB (D65), as OpenEXR's chromaticities attribute
+REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
+CHROMATICITY_TOLERANCE = 1e-3  # of x, y: Rec. 709 / D65 as stored in 32-bit floats or rounded by a writer
 # IEC 61966-2-1 sRGB primaries, D65
 SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
 # XYZ (D65) -> camera RGB of the Sony ILCE-7: the matrix LibRaw applies to this model
@@ -21,3 +25,44 @@ def camera_to_srgb_matrix(xyz_to_camera: np.ndarray, as_shot_neutral: np.ndarray
     matrix = np.linalg.inv(np.asarray(xyz_to_camera, np.float64) @ SRGB_TO_XYZ)
     white = matrix @ np.asarray(as_shot_neutral, np.float64)
     return matrix * (as_shot_neutral[1] / white)[:, None] if np.all(white > 0) else matrix
+
+
+def to_rec709_matrix(chromaticities) -> np.ndarray | None:
+    """3 x 3 matrix from linear RGB of these chromaticities (red x, y, green x, y, blue x, y, white x, y) to
+    linear Rec. 709 / D65 (colour-science's, with Bradford adaptation between the white points), or None when
+    they are Rec. 709 / D65 already, absent, or span no gamut (all zero, as some writers store)."""
+    if chromaticities is None:
+        return None
+    values = np.asarray(chromaticities, np.float64)
+    if values.shape != (8,) or not np.isfinite(values).all() or \
+            np.abs(values - REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
+        return None
+    primaries, white = values[:6].reshape(3, 2), values[6:]
+    if np.any(primaries[:, 1] == 0) or not white[1] > 0:
+        return None  # no gamut (all zero): taken as absent
+    xyz_columns = np.stack([np.append(xy, 1 - xy.sum()) / xy[1] for xy in primaries], axis=1)
+    if abs(np.linalg.det(xyz_columns)) < 1e-6:
+        return None  # collinear primaries: taken as absent
+    colour = _colour()
+    source = colour.RGB_Colourspace("file primaries", primaries, white)
+    return colour.matrix_RGB_to_RGB(source, colour.RGB_COLOURSPACES["ITU-R BT.709"],
+                                    chromatic_adaptation_transform="Bradford")
+
+
+def equal_energy_xyz_to_rec709_matrix() -> np.ndarray:
+    """3 x 3 matrix from CIE XYZ whose white is equal-energy (x = y = 1/3: Radiance's, as in an XYZE file) to
+    linear Rec. 709 / D65, with Bradford adaptation (colour-science)."""
+    colour = _colour()
+    adaptation = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        colour.xy_to_XYZ([1 / 3, 1 / 3]), colour.xy_to_XYZ(REC709_CHROMATICITIES[6:]), transform="Bradford")
+    return colour.RGB_COLOURSPACES["ITU-R BT.709"].matrix_XYZ_to_RGB @ adaptation
+
+
+def _colour():
+    """colour-science, imported on first use (about a second)."""
+    import warnings
+
+    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
+        warnings.simplefilter("ignore")
+        import colour
+    return colour

@@ -11,16 +11,17 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
+from hdrcam.io.radiance import is_radiance_file, read_radiance
 from hdrcam.io.tiff_image import read_tiff_samples
 
 HDR_SUFFIXES = (".exr", ".hdr")
 
 
 def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
-    """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance or float
-    TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images (display images) refused. A
-    luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog and Garden) is read as
-    grey, R = G = B = Y."""
+    """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance (by its
+    magic; hdrcam.io.radiance) or float TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images
+    (display images) refused. A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog
+    and Garden) is read as grey, R = G = B = Y."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -35,6 +36,8 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
                              "not an RGB image")
         _refuse_display_image(path, image)
         image = image[..., :3].astype(np.float32)
+    elif is_radiance_file(path):
+        image = read_radiance(path)
     else:
         with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
             image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import OpenEXR
 
+from hdrcam.colorimetry import REC709_CHROMATICITIES, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
@@ -34,7 +35,6 @@ from hdrcam.parallel import worker_threads
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
 DECODED_BYTES_PER_SAMPLE = 12  # the decoded float32 plane, its full-resolution copy and one working copy
-_REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 # Header keys that OpenEXR manages itself; everything else is a user attribute.
 _STRUCTURAL_KEYS = {
     "channels", "compression", "dataWindow", "displayWindow", "lineOrder", "pixelAspectRatio",
@@ -122,7 +122,7 @@ def read_exr(path: Path) -> ExrImage:
     channels = {name: _full_resolution(pixels, x_sampling, y_sampling, height, width, path, name)
                 for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
     if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
-        chromaticities = header.get("chromaticities", _REC709_CHROMATICITIES)
+        chromaticities = header.get("chromaticities", REC709_CHROMATICITIES)
         try:
             red, green, blue = _luminance_chroma_to_rgb(channels.pop("Y"), channels.pop("RY"),
                                                         channels.pop("BY"), chromaticities)
@@ -130,40 +130,13 @@ def read_exr(path: Path) -> ExrImage:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = _user_attributes(header)
-    matrix = _to_rec709_matrix(header.get("chromaticities"))
+    matrix = to_rec709_matrix(header.get("chromaticities"))
     if matrix is not None and {"R", "G", "B"} <= channels.keys():
         rgb = np.stack([channels[name] for name in "RGB"], axis=-1) @ matrix.T.astype(np.float32)
         channels.update(R=rgb[..., 0].copy(), G=rgb[..., 1].copy(), B=rgb[..., 2].copy())
         attributes.pop("chromaticities", None)
     return ExrImage(channels=channels, attributes=attributes, source=Path(path))
 
-
-CHROMATICITY_TOLERANCE = 1e-3  # of x, y: Rec. 709 / D65 as stored in 32-bit floats or rounded by a writer
-
-
-def _to_rec709_matrix(chromaticities) -> np.ndarray | None:
-    """3 x 3 matrix from RGB of these (red x, y, green x, y, blue x, y, white x, y) chromaticities to linear
-    Rec. 709 / D65, or None when they are Rec. 709 / D65 already, absent, or span no gamut."""
-    if chromaticities is None:
-        return None
-    values = np.asarray(chromaticities, np.float64)
-    if values.shape != (8,) or not np.isfinite(values).all() or \
-            np.abs(values - _REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
-        return None
-    primaries, white = values[:6].reshape(3, 2), values[6:]
-    xyz_columns = np.stack([np.append(xy, 1 - xy.sum()) / xy[1] if xy[1] != 0 else np.full(3, np.nan)
-                            for xy in primaries], axis=1)
-    if not np.isfinite(xyz_columns).all() or abs(np.linalg.det(xyz_columns)) < 1e-6 or not white[1] > 0:
-        return None  # no gamut (all zero, or collinear primaries): taken as absent
-    import warnings
-
-    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
-        warnings.simplefilter("ignore")
-        import colour
-
-    source = colour.RGB_Colourspace("EXR chromaticities", primaries, white)
-    return colour.matrix_RGB_to_RGB(source, colour.RGB_COLOURSPACES["ITU-R BT.709"],
-                                    chromatic_adaptation_transform="Bradford")
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"

@@ -1,0 +1,110 @@
+"""Radiance RGBE / XYZE (.hdr, .pic) images as linear Rec. 709 / D65 radiance, decoded by OpenCV.
+
+OpenCV decodes the pixel data (flat and run-length scanlines) but only a header of its own standard form: it
+refused any other orientation, a file without a FORMAT line (Radiance's default is RGBE) and XYZE data, and it
+ignores the header's corrections. This module reads the header (Radiance's file format, "Radiance File
+Formats", G. Ward): the magic line ``#?...``, variable lines up to an empty line, then the resolution string
+``<sign><axis> N1 <sign><axis> N2`` (the first axis the scanlines' order, the second the pixels' within one;
+``-Y N +X M`` is top to bottom, left to right). The data are handed to OpenCV behind a standard header and the
+decoded array turned and mirrored into the image, then:
+
+- ``FORMAT=32-bit_rle_xyze``: CIE XYZ with Radiance's equal-energy white, converted to Rec. 709 / D65;
+- ``EXPOSURE=`` (all such lines multiply) and ``COLORCORR=`` (per channel): the file's values are radiance
+  times them, so they are divided out;
+- ``PRIMARIES=``: RGB in those primaries, converted to Rec. 709 / D65 (all-zero primaries, as some writers store,
+  count as absent; absent means Rec. 709, as files in the wild are).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix, to_rec709_matrix
+from hdrcam.errors import InputError
+from hdrcam.io.c_stderr import c_stderr_silenced
+
+RADIANCE_MAGIC = b"#?"
+FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
+_RESOLUTION = re.compile(rb"([-+])([XY]) (\d+) ([-+])([XY]) (\d+)")
+MAX_HEADER_BYTES = 1 << 16  # a header is a few lines; a file without an end to it within this is not Radiance
+
+
+def is_radiance_file(path: Path) -> bool:
+    """True for a file that begins with Radiance's magic ``#?``."""
+    with open(path, "rb") as handle:
+        return handle.read(2) == RADIANCE_MAGIC
+
+
+def read_radiance(path: Path) -> np.ndarray:
+    """H x W x 3 float32 linear Rec. 709 / D65 radiance of a Radiance file (module docstring); InputError naming
+    the file and what is wrong with it otherwise."""
+    data = Path(path).read_bytes()
+    header_end = data.find(b"\n\n", 0, MAX_HEADER_BYTES)
+    if not data.startswith(RADIANCE_MAGIC) or header_end < 0:
+        raise InputError(f"{path}: not a Radiance file (no '#?' magic line and header ending in an empty line)")
+    lines = data[:header_end].split(b"\n")[1:]
+    variables = [line.split(b"=", 1) for line in lines if b"=" in line and not line.startswith(b"#")]
+    resolution_end = data.find(b"\n", header_end + 2)
+    match = _RESOLUTION.fullmatch(data[header_end + 2:resolution_end].strip()) if resolution_end > 0 else None
+    if match is None or match.group(2) == match.group(5):
+        shown = data[header_end + 2:header_end + 42].split(b"\n")[0].decode("ascii", "replace")
+        raise InputError(f"{path}: Radiance resolution line {shown!r} is not '<+|-><X|Y> N <+|-><Y|X> M'")
+    image_format = _format(path, variables)
+    major_sign, major_axis, major, minor_sign, _, minor = match.groups()
+    standard = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (int(major), int(minor))
+    with c_stderr_silenced():  # OpenCV prints its own lines for damaged data
+        decoded = cv2.imdecode(np.frombuffer(standard + data[resolution_end + 1:], np.uint8),
+                               cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if decoded is None:
+        raise InputError(f"{path}: Radiance pixel data cannot be decoded (truncated or damaged?)")
+    values = cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB).astype(np.float32)
+    x_sign, y_sign = (minor_sign, major_sign) if major_axis == b"Y" else (major_sign, minor_sign)
+    if major_axis == b"X":  # scanlines run down the columns
+        values = values.transpose(1, 0, 2)
+    if y_sign == b"+":  # +Y: the first scanline is the bottom one
+        values = values[::-1]
+    if x_sign == b"-":
+        values = values[:, ::-1]
+    return _corrected(path, np.ascontiguousarray(values), image_format, variables)
+
+
+def _format(path: Path, variables: list[list[bytes]]) -> str:
+    formats = [value.strip().decode("ascii", "replace") for name, value in variables if name.strip() == b"FORMAT"]
+    image_format = formats[-1] if formats else FORMATS[0]  # no FORMAT line: Radiance's default
+    if image_format not in FORMATS:
+        raise InputError(f"{path}: Radiance FORMAT={image_format} is not one of {', '.join(FORMATS)}")
+    return image_format
+
+
+def _corrected(path: Path, values: np.ndarray, image_format: str, variables: list[list[bytes]]) -> np.ndarray:
+    """The decoded values as Rec. 709 radiance: exposure and colour corrections divided out, primaries converted."""
+    divisor = np.ones(3)
+    primaries = None
+    for name, value in variables:
+        name = name.strip()
+        if name not in (b"EXPOSURE", b"COLORCORR", b"PRIMARIES"):
+            continue
+        try:
+            numbers = np.array(value.split(), np.float64)
+        except ValueError:
+            raise InputError(f"{path}: Radiance {name.decode()}={value.decode('ascii', 'replace').strip()} is not "
+                             "numbers") from None
+        expected = {b"EXPOSURE": 1, b"COLORCORR": 3, b"PRIMARIES": 8}[name]
+        if numbers.size != expected or (name != b"PRIMARIES" and not np.all(numbers > 0)):
+            raise InputError(f"{path}: Radiance {name.decode()}= needs {expected} "
+                             f"{'positive ' if name != b'PRIMARIES' else ''}numbers, got "
+                             f"{value.decode('ascii', 'replace').strip()!r}")
+        if name == b"PRIMARIES":
+            primaries = numbers
+        else:
+            divisor *= numbers
+    if not np.array_equal(divisor, np.ones(3)):
+        values /= divisor.astype(np.float32)
+    matrix = equal_energy_xyz_to_rec709_matrix() if image_format == FORMATS[1] else to_rec709_matrix(primaries)
+    if matrix is not None:
+        values = values @ matrix.T.astype(np.float32)
+    return values

@@ -1,0 +1,95 @@
+"""Radiance files against OpenCV's decoding of the same pixels in its standard form: orientations, header
+corrections, XYZE, and one-line refusals (hdrcam.io.radiance)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix
+from hdrcam.data.hdr_folder import read_hdr_image
+from hdrcam.errors import InputError
+
+HEIGHT, WIDTH = 6, 9
+STANDARD_HEADER = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n"
+
+
+def _image() -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return (rng.uniform(0.01, 1, (HEIGHT, WIDTH, 3)) * 10 ** rng.uniform(-1, 3, (HEIGHT, WIDTH, 1))).astype(np.float32)
+
+
+def _standard_bytes(tmp_path, stored: np.ndarray) -> bytes:
+    """OpenCV's file of ``stored`` (RGB, top to bottom, left to right)."""
+    cv2.imwrite(str(tmp_path / "standard.hdr"), cv2.cvtColor(stored, cv2.COLOR_RGB2BGR))
+    data = (tmp_path / "standard.hdr").read_bytes()
+    assert data.startswith(STANDARD_HEADER)
+    return data
+
+
+def _decoded(tmp_path, image: np.ndarray) -> np.ndarray:
+    """``image`` as RGBE quantises it."""
+    _standard_bytes(tmp_path, image)
+    return cv2.cvtColor(cv2.imread(str(tmp_path / "standard.hdr"), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR),
+                        cv2.COLOR_BGR2RGB)
+
+
+def _with_header(tmp_path, stored: np.ndarray, header: bytes, resolution: bytes):
+    data = _standard_bytes(tmp_path, stored)
+    pixels = data[data.index(b"\n", len(STANDARD_HEADER)) + 1:]
+    (tmp_path / "file.hdr").write_bytes(header + b"\n" + resolution + b"\n" + pixels)
+    return tmp_path / "file.hdr"
+
+
+@pytest.mark.parametrize("resolution, stored", [
+    (b"+Y %d +X %d" % (HEIGHT, WIDTH), lambda image: image[::-1]),  # bottom to top
+    (b"-Y %d -X %d" % (HEIGHT, WIDTH), lambda image: image[:, ::-1]),  # right to left
+    (b"+X %d -Y %d" % (WIDTH, HEIGHT), lambda image: image.transpose(1, 0, 2)),  # scanlines down the columns
+    (b"-X %d +Y %d" % (WIDTH, HEIGHT), lambda image: image[::-1, ::-1].transpose(1, 0, 2)),
+])
+def test_every_orientation_reads_as_the_image_it_stores(tmp_path, resolution, stored):
+    """OpenCV refused any orientation but -Y H +X W ("cannot read as an HDR image")."""
+    image = _image()
+    path = _with_header(tmp_path, np.ascontiguousarray(stored(image)), b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n",
+                        resolution)
+    np.testing.assert_array_equal(read_hdr_image(path), _decoded(tmp_path, image))
+
+
+def test_exposure_and_colour_corrections_are_divided_out_and_a_missing_format_means_rgbe(tmp_path):
+    """Radiance: a file's values are radiance times EXPOSURE (every such line) and COLORCORR (per channel); they
+    were ignored, so R:B read 4x off with COLORCORR=2 1 0.5."""
+    image = _image()
+    header = b"#?RADIANCE\n# a comment\nEXPOSURE=2\nCOLORCORR=2 1 0.5\nEXPOSURE=1.5\nSOFTWARE=test\n"
+    path = _with_header(tmp_path, image, header, b"-Y %d +X %d" % (HEIGHT, WIDTH))
+    np.testing.assert_allclose(read_hdr_image(path), _decoded(tmp_path, image) / np.array([6.0, 3.0, 1.5]),
+                               rtol=1e-6)
+
+
+def test_xyze_data_are_converted_from_equal_energy_xyz(tmp_path):
+    xyz = _image()
+    path = _with_header(tmp_path, xyz, b"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n", b"-Y %d +X %d" % (HEIGHT, WIDTH))
+    expected = _decoded(tmp_path, xyz) @ equal_energy_xyz_to_rec709_matrix().T
+    np.testing.assert_allclose(read_hdr_image(path), np.clip(expected, 0, None), rtol=1e-5, atol=1e-6)
+    grey = np.full((2, 2, 3), 3.0, np.float32)  # equal-energy white reads as neutral
+    path = _with_header(tmp_path, grey, b"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n", b"-Y 2 +X 2")
+    np.testing.assert_allclose(read_hdr_image(path), 3.0, rtol=1e-5)
+
+
+@pytest.mark.parametrize("header, resolution, message", [
+    (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbf\n", b"-Y 6 +X 9", r"FORMAT=32-bit_rle_rgbf is not one of"),
+    (b"#?RADIANCE\n", b"-Y 6 -Y 9", r"resolution line '-Y 6 -Y 9' is not"),
+    (b"#?RADIANCE\nCOLORCORR=2 1\n", b"-Y 6 +X 9", r"COLORCORR= needs 3 positive numbers, got '2 1'"),
+    (b"#?RADIANCE\nEXPOSURE=abc\n", b"-Y 6 +X 9", r"EXPOSURE=abc is not numbers"),
+])
+def test_an_unusable_header_is_refused_in_one_line_that_says_why(tmp_path, header, resolution, message):
+    path = _with_header(tmp_path, _image(), header, resolution)
+    with pytest.raises(InputError, match=message):
+        read_hdr_image(path)
+
+
+def test_truncated_pixel_data_are_refused(tmp_path):
+    path = _with_header(tmp_path, _image(), b"#?RADIANCE\n", b"-Y 6 +X 9")
+    path.write_bytes(path.read_bytes()[:60])
+    with pytest.raises(InputError, match="pixel data cannot be decoded"):
+        read_hdr_image(path)
