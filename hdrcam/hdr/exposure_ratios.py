@@ -17,10 +17,13 @@ neighbour mean, blurred over the CFA's spacing, made the ratios a fifth noisier 
 bracket has only the neighbour mean): a black level off by a fraction of a DN in either frame, which biases a
 ratio of sums by that fraction over the shorter frame's mean signal (one DN over a frame 2 DN above black: 36 %
 off, for every pixel of the image through the scale; +-1 DN, 5-9 % on a simulated night bracket), cancels from
-it. A scene without the contrast to carry a slope (cov(z, y_k) below MIN_CONTRAST of the product of the means: a
-flat field) gives the ratio of the sums, sum(y_k+1) / sum(y_k), instead, and says so. The upper bound depends on
-the ratio, so each ratio is refined up to REFINEMENTS times, starting from the labels. A ratio more than
-IMPLAUSIBLE_STOPS from its label is used, with a warning.
+it. The slope is used where its standard error (instrumental variables': the residuals' spread times z's,
+over the covariance; offset-free too) is at most SLOPE_ERROR of it. A scene without that
+contrast (a flat field) gives the ratio of the sums, sum(y_k+1) / sum(y_k), where the shorter frame's mean
+signal is at least SUMS_MIN_SIGNAL_DN (a DN of black-level error then moves it 1 % at most), and says so; else
+the label stands, with the reason. The upper bound depends on the ratio, so each ratio is refined up to
+REFINEMENTS times, starting from the labels. A ratio more than IMPLAUSIBLE_STOPS from its label is used, with a
+warning.
 
 Signals are in DN above black; exposures in seconds.
 
@@ -49,9 +52,10 @@ SIGNAL_FLOOR = 5.0  # read-noise sigmas in the selecting frame
 REFINEMENTS = 3
 BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
 ADC_ZERO_SIGMAS = 2.0  # the shorter frame's prediction above the ADC's zero (module docstring)
-MIN_CONTRAST = 0.05  # cov(z, y_k) over mean(z) mean(y_k) below which the slope gives way to the ratio of sums
+SLOPE_ERROR = 0.01  # the slope's relative standard error, at most
+SUMS_MIN_SIGNAL_DN = 100.0  # the shorter frame's mean signal for the ratio of sums: a DN of black error, 1 %
 IMPLAUSIBLE_STOPS = 0.5  # a working shutter is off its label by a few per cent; half a stop is 41 %
-SUMS = 6  # per pair: count, and the sums of y_k, y_k+1, z, z y_k, z y_k+1
+SUMS = 10  # per pair: count, and the sums of y_k, y_k+1, z, z y_k, z y_k+1, z^2, y_k^2, y_k+1^2, y_k y_k+1
 
 StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
@@ -86,7 +90,7 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         predicted = [neighbour_mean(signal)[inner] for signal in signals[:pairs]]
         return [signal[inner] for signal in signals], [mask[inner] for mask in clipped], predicted
 
-    def first_pass(rows: slice) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    def first_pass(rows: slice) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]:
         signals, clipped, predictions = strip_and_predictions(rows)
         below_band = np.zeros((pairs, SUMS), np.float64)
         kept = []
@@ -132,7 +136,7 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
             totals[k] = below_band[k] + kept_totals[k]
         for k in list(refining):
             final[k] = totals[k]
-            ratio, why_not = _ratio(totals[k])
+            ratio, _, why_not = _ratio(totals[k])
             if ratio is not None:
                 ratios[k] = ratio
                 continue
@@ -143,8 +147,8 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         if k in unestimated:
             notes.append(f"frames {k}-{k + 1}: {unestimated[k]}; using the labelled ratio {labelled[k]:.4f}")
             continue
-        how = "" if _has_contrast(final[k]) else \
-            " (the frames' sums: too little contrast to cancel a black-level error)"
+        how = "" if _ratio(final[k])[1] == "slope" else \
+            " (the frames' sums: too little contrast for a slope that cancels a black-level error)"
         notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {int(final[k, 0])} pixels{how} (labels say "
                      f"{labelled[k]:.4f})")
         stops = float(np.log2(ratios[k] / labelled[k]))
@@ -157,36 +161,49 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
     return relative * scale
 
 
-def _ratio(totals: np.ndarray) -> tuple[float | None, str]:
-    """A pair's ratio from its sums (module docstring), or None and why none follows from them."""
-    count, shorter, longer, predicted, predicted_shorter, predicted_longer = totals
+def _ratio(totals: np.ndarray) -> tuple[float | None, str, str]:
+    """A pair's ratio from its sums (module docstring), how it was found ("slope" or "sums"), and why none
+    follows from them when it is None."""
+    count, shorter, longer, instrument, instrument_shorter, instrument_longer, instrument_squared, \
+        shorter_squared, longer_squared, shorter_longer = totals
     if count < MIN_RATIO_SAMPLES:
-        return None, f"only {int(count)} pixels usable in both"
-    if _has_contrast(totals):
-        numerator = predicted_longer - predicted * longer / count
-        denominator = predicted_shorter - predicted * shorter / count
+        return None, "", f"only {int(count)} pixels usable in both"
+
+    def centred(product: float, first: float, second: float) -> float:  # sum of (a - mean a)(b - mean b)
+        return product - first * second / count
+
+    covariance = centred(instrument_shorter, instrument, shorter)
+    slope = centred(instrument_longer, instrument, longer) / covariance if covariance > 0 else 0.0
+    residual = centred(longer_squared, longer, longer) - 2 * slope * centred(shorter_longer, shorter, longer) + \
+        slope ** 2 * centred(shorter_squared, shorter, shorter)  # of y_k+1 - slope y_k, times count
+    error = np.sqrt(max(residual, 0.0) * centred(instrument_squared, instrument, instrument) / count) / covariance \
+        if covariance > 0 else np.inf  # the slope's standard error
+    mean_dn = shorter / count
+    if slope > 0 and error <= SLOPE_ERROR * slope:
+        numerator, denominator, how = slope, 1.0, "slope"
+    elif mean_dn >= SUMS_MIN_SIGNAL_DN:
+        numerator, denominator, how = longer, shorter, "sums"
+    elif mean_dn <= 0:
+        return None, "", f"the shorter frame's {int(count)} usable pixels hold no signal above black"
     else:
-        numerator, denominator = longer, shorter
-        if denominator <= 0:
-            return None, f"the shorter frame's {int(count)} usable pixels hold no signal above black"
+        return None, "", (f"too little contrast for a slope (standard error {_percent(error, slope)} over "
+                          f"{int(count)} pixels) and signal for the sums (mean {mean_dn:.3g} DN: a DN of "
+                          f"black-level error moves them {100 / mean_dn:.0f} %)")
     if numerator <= denominator:  # no bound follows from a longer frame that is no brighter
-        return None, (f"the longer frame is no brighter over {int(count)} usable pixels (ratio "
-                      f"{numerator / denominator:.4f})")
-    return float(numerator / denominator), ""
+        return None, "", (f"the longer frame is no brighter over {int(count)} usable pixels (ratio "
+                          f"{numerator / denominator:.4f})")
+    return float(numerator / denominator), how, ""
 
 
-def _has_contrast(totals: np.ndarray) -> bool:
-    """True when the instrument varies enough for the slope: cov(z, y_k) >= MIN_CONTRAST mean(z) mean(y_k)."""
-    count, shorter, _, predicted, predicted_shorter, _ = totals
-    product_of_means = predicted * shorter / count ** 2
-    return product_of_means > 0 and predicted_shorter / count - product_of_means >= MIN_CONTRAST * product_of_means
+def _percent(error: float, slope: float) -> str:
+    return f"{100 * error / slope:.2g} %" if slope > 0 and np.isfinite(error) else "unbounded"
 
 
-def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]], bounds_dn: dict[int, float]
-               ) -> np.ndarray:
+def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+               bounds_dn: dict[int, float]) -> np.ndarray:
     """Per pair k of ``bounds_dn``: the SUMS over a strip's kept pixels of that pair (``strip_kept[k]``: the
-    shorter frame's neighbour mean and both frames' float32 signals) whose neighbour mean is below
-    ``bounds_dn[k]``."""
+    shorter frame's neighbour mean, the instrument and both frames' float32 signals) whose neighbour mean is
+    below ``bounds_dn[k]``."""
     totals = np.zeros((len(strip_kept), SUMS), np.float64)
     for k, bound in bounds_dn.items():
         predicted, instrument, shorter, longer = strip_kept[k]
@@ -195,17 +212,20 @@ def _kept_sums(strip_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]], boun
 
 
 def _sums(instrument: np.ndarray, shorter: np.ndarray, longer: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """The SUMS (count, sums of ``shorter``, ``longer``, ``instrument`` and of ``instrument`` times each) over
-    ``valid``: float32 products summed in float64 by OpenCV (numpy's einsum sums in float32, whose rounding the
+    """The SUMS (count; sums of ``shorter``, ``longer``, ``instrument``, ``instrument`` times each of them, and
+    the squares of ``instrument``, ``shorter`` and ``longer``, and ``shorter`` times ``longer``) over ``valid``:
+    float32 products summed in float64 by OpenCV (numpy's einsum sums in float32, whose rounding the
     covariances' differences magnified to 2e-6 of the ratios between strip sizes)."""
     weights = valid.astype(np.float32)
     weighted = cv2.multiply(instrument, weights)
-    return np.array([np.count_nonzero(valid),
-                     cv2.sumElems(cv2.multiply(shorter, weights))[0],
-                     cv2.sumElems(cv2.multiply(longer, weights))[0],
-                     cv2.sumElems(weighted)[0],
-                     cv2.sumElems(cv2.multiply(shorter, weighted))[0],
-                     cv2.sumElems(cv2.multiply(longer, weighted))[0]])
+    weighted_shorter = cv2.multiply(shorter, weights)
+    return np.array([np.count_nonzero(valid), cv2.sumElems(weighted_shorter)[0],
+                     cv2.sumElems(cv2.multiply(longer, weights))[0], cv2.sumElems(weighted)[0],
+                     cv2.sumElems(cv2.multiply(shorter, weighted))[0], cv2.sumElems(cv2.multiply(longer, weighted))[0],
+                     cv2.sumElems(cv2.multiply(instrument, weighted))[0],
+                     cv2.sumElems(cv2.multiply(shorter, weighted_shorter))[0],
+                     cv2.sumElems(cv2.multiply(longer, cv2.multiply(longer, weights)))[0],
+                     cv2.sumElems(cv2.multiply(longer, weighted_shorter))[0]])
 
 
 def _instrument(signals: list[np.ndarray], predicted: np.ndarray, k: int) -> np.ndarray:

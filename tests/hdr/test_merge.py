@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -297,6 +299,36 @@ def test_a_longer_frame_that_is_no_brighter_keeps_the_labelled_ratio():
         exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 15000.0, 3.0, notes, pool)
     assert exposures[1] / exposures[0] == pytest.approx(4.0)
     assert "no signal above black; using the labelled ratio" in notes[0]  # it read "ratio 4.0000 from 1280 pixels"
+
+
+@pytest.mark.parametrize("shorter_dn, note", [
+    (1000.0, r"ratio 8\.0\d+ from 1280 pixels \(the frames' sums: too little contrast for a slope"),
+    (3.0, r"too little contrast for a slope \(standard error unbounded over 1280 pixels\) and signal for the sums "
+          r"\(mean [23]\.\d+ DN: a DN of black-level error moves them 3\d %\); using the labelled ratio 4\.0000"),
+])
+def test_a_flat_field_gives_the_ratio_of_sums_where_bright_and_the_label_where_dim(shorter_dn, note):
+    """No contrast, no slope: the frames' sums where a DN of black error moves them 1 % at most, else the label
+    (a frame 3 DN above black read a ratio of sums a third off per DN of black error)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hdrcam.hdr.exposure_ratios import estimate_exposures
+
+    rng = np.random.default_rng(0)
+    shape = (32, 40)
+    frames = [(shorter_dn * ratio + rng.normal(0, 2.0, shape)).astype(np.float32) for ratio in (1, 8, 64)]
+    unclipped = np.zeros(shape, bool)
+
+    def strip_data(rows):
+        return [frame[rows] for frame in frames], [unclipped[rows]] * 3
+
+    notes: list[str] = []
+    labelled = np.array([0.001, 0.004, 0.016])  # a stop off the data: which was used shows
+    with ThreadPoolExecutor(2) as pool, warnings.catch_warnings(record=True) as warned:
+        warnings.simplefilter("always")
+        exposures = estimate_exposures(strip_data, [slice(0, 16), slice(16, 32)], labelled, 1e6, 2.0, notes, pool)
+    assert re.search(note, notes[0]), notes[0]
+    assert [str(w.message)[:11] for w in warned] == (["frames 0-1:", "frames 1-2:"] if shorter_dn > 100 else [])
+    assert exposures[1] / exposures[0] == pytest.approx(8.0 if shorter_dn > 100 else 4.0, rel=2e-3)
 
 
 def test_nominal_labels_are_read_as_the_shutters_true_times():
