@@ -58,7 +58,7 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
                          "16-bit TIFF/PNG")
     elif suffix in IMAGE_SUFFIXES:
         image = _rgb_samples(path, suffix)
-        if image.dtype in (np.float32, np.float64):
+        if image.dtype.kind == "f":
             rgb = image.astype(np.float32)  # linear, as EXR
         elif image.dtype == np.uint16:
             rgb = image.astype(np.float32) / 65535.0

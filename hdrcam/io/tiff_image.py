@@ -2,29 +2,59 @@
 
 OpenCV's TIFF decoder hands back the planes of a "per channel" file (PlanarConfiguration 2) as if they were
 interleaved: such a frame came back scrambled with no error (a 16-bit planar TIFF reconstructed with unclipped
-pixels up to 0.92 of white off). tifffile decodes both layouts and every TIFF compression in use.
+pixels up to 0.92 of white off). tifffile decodes both layouts, with imagecodecs' codecs (LZW, JPEG, the
+predictors). Colour samples other than RGB (CMYK, CIELab, YCbCr left undecoded) are refused, not taken for RGB;
+a file its codecs cannot decode is an InputError naming it, with tifffile's own log lines kept off stderr.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 from pathlib import Path
 
 import numpy as np
 import tifffile
 
 from hdrcam.errors import InputError
+from hdrcam.limits import check_image_size
+
+COLOUR_PHOTOMETRICS = ("RGB", "MINISBLACK", "MINISWHITE")  # RGB, or one sample (grey) refused by its callers
+DECODED_COPY_BYTES = 12  # the float32 RGB image its callers make of the samples
 
 
 def read_tiff_samples(path: Path) -> np.ndarray:
     """The first image of a TIFF file: H x W x samples in the stored type (a one-sample image is H x W);
-    InputError naming the file when it cannot be decoded."""
+    InputError naming the file when it cannot be decoded or its samples are not RGB or grey."""
     try:
-        with tifffile.TiffFile(path) as tiff:
+        with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
             page = tiff.pages[0]
+            photometric = page.photometric.name if page.photometric is not None else "unknown"
+            if photometric not in COLOUR_PHOTOMETRICS:
+                raise InputError(f"{path}: TIFF of {photometric} samples, not RGB; save it as RGB")
+            height, width = page.imagelength, page.imagewidth
+            check_image_size(str(path), height, width, page.samplesperpixel * page.dtype.itemsize + DECODED_COPY_BYTES,
+                             "give a smaller image")  # before decoding: a damaged header may declare anything
             samples = page.asarray()
             axes = page.axes
-    except (tifffile.TiffFileError, ValueError, OSError, NotImplementedError, KeyError, IndexError) as error:
+    except InputError:
+        raise
+    except MemoryError:
+        raise
+    except Exception as error:  # noqa: BLE001 - tifffile and its codecs raise their own (zlib.error, ...)
         raise InputError(f"{path}: cannot decode as TIFF ({type(error).__name__}: {error})") from None
     if axes.startswith("S") and samples.ndim == 3:  # planar: one plane per sample
         samples = np.moveaxis(samples, 0, -1)
     return samples
+
+
+@contextlib.contextmanager
+def _tifffile_quiet():
+    """tifffile logs what it finds wrong with a file as warnings on stderr; the InputError says it in one line."""
+    logger = logging.getLogger("tifffile")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

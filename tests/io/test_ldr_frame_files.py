@@ -83,3 +83,30 @@ def test_a_tiff_that_is_not_rgb_or_not_a_tiff_is_refused_in_one_line(tmp_path):
     (tmp_path / "text.tif").write_text("not a tiff")
     with pytest.raises(InputError, match=r"text.tif: cannot decode as TIFF"):
         read_ldr_frame(tmp_path / "text.tif")
+
+
+def test_lzw_and_half_float_tiffs_read_and_damaged_or_cmyk_ones_are_refused_in_one_line(tmp_path, capfd):
+    """OpenCV writes 16-bit TIFFs with LZW, which tifffile decodes only with imagecodecs; a corrupt deflate
+    stream escaped as zlib.error (exit 3), four CMYK samples were read as RGB, and tifffile's log lines reached
+    stderr."""
+    import tifffile
+
+    counts = (_gradient() * 60000).astype(np.uint16)
+    cv2.imwrite(str(tmp_path / "lzw.tif"), cv2.cvtColor(counts, cv2.COLOR_RGB2BGR))
+    assert tifffile.TiffFile(tmp_path / "lzw.tif").pages[0].compression == tifffile.COMPRESSION.LZW
+    np.testing.assert_array_equal(read_ldr_frame(tmp_path / "lzw.tif"), counts / np.float32(65535.0))
+    tifffile.imwrite(tmp_path / "half.tif", _gradient().astype(np.float16), photometric="rgb")
+    np.testing.assert_allclose(read_ldr_frame(tmp_path / "half.tif"), _gradient(), atol=1e-3)
+
+    tifffile.imwrite(tmp_path / "deflate.tif", counts, photometric="rgb", compression="zlib")
+    data = bytearray((tmp_path / "deflate.tif").read_bytes())
+    data[300:360] = bytes(60)  # inside the compressed strip (it starts at byte 272)
+    (tmp_path / "deflate.tif").write_bytes(bytes(data))
+    tifffile.imwrite(tmp_path / "cmyk.tif", np.concatenate([counts, counts[..., :1]], axis=-1),
+                     photometric="separated")
+    capfd.readouterr()
+    for name, message in (("deflate.tif", "cannot decode as TIFF"), ("cmyk.tif", "TIFF of SEPARATED samples, not RGB")):
+        for reader in (read_ldr_frame, read_hdr_image):
+            with pytest.raises(InputError, match=f"{name}: {message}"):
+                reader(tmp_path / name)
+    assert capfd.readouterr().err == ""
