@@ -81,7 +81,10 @@ def run(arguments: argparse.Namespace) -> int:
                          CAPTURE_BYTES_PER_PIXEL, "use a smaller scene")
         scene = np.pad(scene, ((margin, margin), (margin, margin), (0, 0)), mode="reflect")
     inner = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
-    scene = scale_to_clipped_fraction(scene, arguments.clipped_fraction, scale_region=inner)
+    try:
+        scene = scale_to_clipped_fraction(scene, arguments.clipped_fraction, scale_region=inner)
+    except InputError as error:  # the scene's own fault: named, as every input error is
+        raise InputError(f"{arguments.scene}: {error}") from None
     frame = capture_scene(scene, psf, profile, arguments.seed)
     truth = scene[margin:scene.shape[0] - margin, margin:scene.shape[1] - margin]
     reached = clipped_fraction(truth)

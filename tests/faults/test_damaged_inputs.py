@@ -123,6 +123,13 @@ def test_a_scene_with_negative_pixels_is_simulated_with_a_warning(tmp_path, caps
     assert status == 0
 
 
+def test_a_black_scene_is_refused_naming_the_file(tmp_path, capsys):
+    """It said "error: image has no light to scale ..." without the file (every input error names its input)."""
+    write_exr(tmp_path / "black.exr", np.zeros((16, 16, 3), np.float32))
+    assert_failed_with_one_line(run(["simulate", tmp_path / "black.exr", "--psf", "dirac", "--out", tmp_path / "f.exr"],
+                                    capsys), 1, f"{tmp_path / 'black.exr'}: image has no light to scale")
+
+
 @pytest.mark.parametrize("argv", [
     lambda t: ["reconstruct", t / "one.exr", "--out", t / "out"],
     lambda t: ["destreak", t / "one.exr", "--out", t / "out"],
