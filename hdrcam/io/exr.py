@@ -110,9 +110,10 @@ def read_exr(path: Path) -> ExrImage:
     try:
         _check_decoded_size(path, _header(data))
         with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
-            header = dict(exr_file.header())
+            part = _image_part(exr_file.parts)
+            header = dict(part.header)
             raw_channels = {name: (channel.pixels, channel.xSampling, channel.ySampling)
-                            for name, channel in exr_file.channels().items()}
+                            for name, channel in part.channels.items()}
     except _UNREADABLE as error:
         raise _unreadable(path, error) from None
     if not raw_channels:
@@ -137,6 +138,22 @@ def read_exr(path: Path) -> ExrImage:
         attributes.pop("chromaticities", None)
     return ExrImage(channels=channels, attributes=attributes, source=Path(path))
 
+
+
+COLOUR_CHANNEL_SETS = ({"R", "G", "B"}, {"Y", "RY", "BY"}, {"Y"})
+
+
+def _image_part(parts):
+    """The part of a (multi-part) file that holds the image: the first with colour channels (a renderer may
+    store depth or masks first), else the first part (a single-channel file: a height map); ValueError for a
+    file without parts (a truncated one)."""
+    if not parts:
+        raise ValueError("no image part")
+    for channel_set in COLOUR_CHANNEL_SETS:
+        for part in parts:
+            if channel_set <= set(part.channels):
+                return part
+    return parts[0]
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"

@@ -179,3 +179,16 @@ def test_rec_709_or_degenerate_chromaticities_leave_the_pixels_as_stored(tmp_pat
     OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": chromaticities}, {"RGB": pixels}).write(
         str(tmp_path / "file.exr"))
     np.testing.assert_array_equal(read_exr(tmp_path / "file.exr").rgb(), pixels)
+
+
+def test_a_multi_part_file_is_read_from_its_colour_part(tmp_path):
+    """A renderer's file with depth in part 0 and the image in part 1 was refused as 'has channels ['Z'], not R,
+    G, B'."""
+    rgb = np.random.default_rng(1).uniform(0, 4, (6, 8, 3)).astype(np.float32)
+    header = {"type": OpenEXR.scanlineimage, "compression": OpenEXR.ZIP_COMPRESSION}
+    depth = OpenEXR.Part(dict(header, name="depth"), {"Z": np.ones((6, 8), np.float32)})
+    image = OpenEXR.Part(dict(header, name="beauty"), {name: np.ascontiguousarray(rgb[..., i])
+                                                       for i, name in enumerate("RGB")})
+    with OpenEXR.File([depth, image]) as exr:
+        exr.write(str(tmp_path / "parts.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
