@@ -72,3 +72,13 @@ def test_a_long_exposure_bracket_with_in_camera_noise_reduction_stays_one_bracke
     _write_frames(tmp_path, (2, 4, 8, 15, 30), starts_s=(0, 5, 14, 31, 64))
     result = ingest_folder(tmp_path)
     assert [len(bracket) for bracket in result.brackets] == [5] and result.report == []
+
+
+def test_two_camera_brackets_shot_out_of_order_are_split_at_the_pause_between_them(tmp_path):
+    """A body's AEB shoots 0, -1, +1 EV within a second; a second set 5 s later, 2 EV brighter, repeats one
+    exposure. Split at the repeat, the first bracket took the second set's first frame (1/125 s) and the second
+    kept two frames."""
+    _write_frames(tmp_path, (1 / 500, 1 / 1000, 1 / 250, 1 / 125, 1 / 250, 1 / 60), starts_s=(0, 0, 0, 5, 5, 5))
+    result = ingest_folder(tmp_path)
+    assert [[f.path.name for f in bracket] for bracket in result.brackets] == [
+        ["frame-00.dng", "frame-01.dng", "frame-02.dng"], ["frame-03.dng", "frame-04.dng", "frame-05.dng"]]
