@@ -6,10 +6,10 @@ than ``max_gap_s`` plus twice the previous exposure: a long exposure is followed
 long, Long Exposure NR, on by default on Sony bodies), with distinct exposure times; a repeated exposure starts
 the next bracket, after the longest pause since the frame it repeats. Brackets shot alternately (e.g. at two
 ISOs) are separated by their settings. Every file of the folder is offered to LibRaw (no list of suffixes): one
-it does not open, or that fits no bracket, is reported with the reason - never silently dropped. A byte-
-identical copy of another RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is named as a duplicate and
-left out, so that it neither splits a bracket nor stands for a second exposure. Hidden files and hdrcam's own
-JSON manifests are not candidates.
+it does not open, or that fits no bracket, is reported with the reason - never silently dropped. A
+byte-identical copy of another RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is named as a duplicate
+and left out, so that it neither splits a bracket nor stands for a second exposure. Hidden files and hdrcam's
+own JSON manifests are not candidates.
 """
 
 from __future__ import annotations
