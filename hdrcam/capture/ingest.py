@@ -118,6 +118,18 @@ def _taken(frame: RawMetadata) -> tuple:
     return frame.timestamp is None, frame.timestamp or 0
 
 
+def subfolder_hint(folder: Path) -> str:
+    """Where files lie below a folder that holds none itself (a memory card's root: its frames are in
+    DCIM/100MSDCF), as ': ingest reads one folder, not its subfolders - e.g. PATH (N files)', else ''."""
+    for root, folders, _ in os.walk(folder):  # top down, stopping at the first folder with files
+        folders[:] = sorted(name for name in folders if not name.startswith("."))
+        below = Path(root)
+        count = len(raw_files(below)) if below != folder else 0
+        if count:
+            return f": ingest reads one folder, not its subfolders - e.g. {below} ({count} files)"
+    return ""
+
+
 def ingest_folder(folder: Path, max_gap_s: float = DEFAULT_MAX_GAP_S) -> IngestResult:
     """Read every RAW file in ``folder`` and group them; unreadable files go to the report."""
     frames, unreadable = [], []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder, settings_text
+from hdrcam.capture.ingest import DEFAULT_MAX_GAP_S, bracket_manifest, ingest_folder, settings_text, subfolder_hint
 from hdrcam.cli.arguments import positive_float
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_paths, check_outputs, write_text_atomic
@@ -29,8 +29,9 @@ def run(arguments: argparse.Namespace) -> int:
         reasons = "; ".join(result.report[:3])
         if len(result.report) > 3:
             reasons += f"; and {len(result.report) - 3} more"
+        hint = subfolder_hint(arguments.folder) if not result.report else ""
         raise InputError(f"{arguments.folder}: no brackets found ({reasons or 'no RAW files in it'}); "
-                         "give a folder of bracketed RAW frames")
+                         f"give a folder of bracketed RAW frames{hint}")
     names = [out / f"bracket-{index:02d}.json" for index in range(1, len(result.brackets) + 1)]
     check_outputs(names, overwrite=arguments.overwrite)
     manifests = [bracket_manifest(frames, out, {"ingested_from": str(arguments.folder)}) for frames in result.brackets]

@@ -82,3 +82,15 @@ def test_two_camera_brackets_shot_out_of_order_are_split_at_the_pause_between_th
     result = ingest_folder(tmp_path)
     assert [[f.path.name for f in bracket] for bracket in result.brackets] == [
         ["frame-00.dng", "frame-01.dng", "frame-02.dng"], ["frame-03.dng", "frame-04.dng", "frame-05.dng"]]
+
+
+def test_a_card_root_is_refused_pointing_at_the_folder_with_the_frames(tmp_path, capsys):
+    """A memory card keeps its frames in DCIM/100MSDCF; ingest of the card's root said only 'no RAW files in it'."""
+    from hdrcam.cli import main
+
+    frames = tmp_path / "card" / "DCIM" / "100MSDCF"
+    frames.mkdir(parents=True)
+    _write_frames(frames, EXPOSURES[:2])
+    assert main(["ingest", str(tmp_path / "card")]) == 1
+    assert capsys.readouterr().err.strip().endswith(f"ingest reads one folder, not its subfolders - e.g. {frames} "
+                                                    "(2 files)")
