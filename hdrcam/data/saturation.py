@@ -48,4 +48,5 @@ def scale_to_clipped_fraction(radiance: np.ndarray, fraction: float, scale_regio
     """``radiance / saturation_scale(...)`` clipped to [0, 2^8]; the scale is measured on ``scale_region``
     (a view of the same image, e.g. the centre crop of a padded scene) when given."""
     scale = saturation_scale(radiance if scale_region is None else scale_region, fraction)
-    return np.clip(radiance / np.float32(scale), 0.0, HIGHLIGHT_PEAK).astype(np.float32)
+    with np.errstate(over="ignore"):  # a value near float32's top over a scale below 1 is inf: clipped to 2^8
+        return np.clip(radiance / np.float32(scale), 0.0, HIGHLIGHT_PEAK).astype(np.float32)

@@ -233,3 +233,18 @@ def test_a_shortfall_names_a_fraction_under_one_pixel_apart_from_a_plateau():
     assert fraction_shortfall(0.016, 0.015, 100) is None
     assert "1.5 % of 15 pixels is less than one" in fraction_shortfall(0.0, 0.015, 15)  # it said: a plateau
     assert "a plateau at its brightest" in fraction_shortfall(0.2, 0.015, 10_000)
+
+
+def test_a_value_near_float32s_top_is_clipped_without_an_overflow_warning():
+    """3e38 over a scale below 1 overflowed to inf with numpy's RuntimeWarning on stderr (the result was right)."""
+    import warnings
+
+    from hdrcam.data.saturation import HIGHLIGHT_PEAK, scale_to_clipped_fraction
+
+    radiance = np.full((40, 40, 3), 0.01, np.float32)
+    radiance[:5] = 0.5
+    radiance[0, 0] = 3e38
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scaled = scale_to_clipped_fraction(radiance, 0.1)
+    assert scaled[0, 0].tolist() == [HIGHLIGHT_PEAK] * 3 and np.isfinite(scaled).all()
