@@ -29,7 +29,8 @@ def camera_to_srgb_matrix(xyz_to_camera: np.ndarray, as_shot_neutral: np.ndarray
 
 def to_rec709_matrix(chromaticities) -> np.ndarray | None:
     """3 x 3 matrix from linear RGB of these chromaticities (red x, y, green x, y, blue x, y, white x, y) to
-    linear Rec. 709 / D65 (colour-science's, with Bradford adaptation between the white points), or None when
+    linear Rec. 709 / D65, with Bradford adaptation between the white points (checked against colour-science's
+    ``matrix_RGB_to_RGB`` in the tests; numpy only, so a GPU machine's training reads such files), or None when
     they are Rec. 709 / D65 already, absent, or span no gamut (all zero, as some writers store)."""
     if chromaticities is None:
         return None
@@ -40,29 +41,37 @@ def to_rec709_matrix(chromaticities) -> np.ndarray | None:
     primaries, white = values[:6].reshape(3, 2), values[6:]
     if np.any(primaries[:, 1] == 0) or not white[1] > 0:
         return None  # no gamut (all zero): taken as absent
-    xyz_columns = np.stack([np.append(xy, 1 - xy.sum()) / xy[1] for xy in primaries], axis=1)
+    xyz_columns = np.stack([_xy_to_xyz(xy) for xy in primaries], axis=1)
     if abs(np.linalg.det(xyz_columns)) < 1e-6:
         return None  # collinear primaries: taken as absent
-    colour = _colour()
-    source = colour.RGB_Colourspace("file primaries", primaries, white)
-    return colour.matrix_RGB_to_RGB(source, colour.RGB_COLOURSPACES["ITU-R BT.709"],
-                                    chromatic_adaptation_transform="Bradford")
+    return np.linalg.inv(_rgb_to_xyz(REC709_CHROMATICITIES)) @ _bradford(white, REC709_CHROMATICITIES[6:]) @ \
+        _rgb_to_xyz(values)
 
 
 def equal_energy_xyz_to_rec709_matrix() -> np.ndarray:
     """3 x 3 matrix from CIE XYZ whose white is equal-energy (x = y = 1/3: Radiance's, as in an XYZE file) to
-    linear Rec. 709 / D65, with Bradford adaptation (colour-science)."""
-    colour = _colour()
-    adaptation = colour.adaptation.matrix_chromatic_adaptation_VonKries(
-        colour.xy_to_XYZ([1 / 3, 1 / 3]), colour.xy_to_XYZ(REC709_CHROMATICITIES[6:]), transform="Bradford")
-    return colour.RGB_COLOURSPACES["ITU-R BT.709"].matrix_XYZ_to_RGB @ adaptation
+    linear Rec. 709 / D65, with Bradford adaptation."""
+    return np.linalg.inv(_rgb_to_xyz(REC709_CHROMATICITIES)) @ _bradford((1 / 3, 1 / 3), REC709_CHROMATICITIES[6:])
 
 
-def _colour():
-    """colour-science, imported on first use (about a second)."""
-    import warnings
+_BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
 
-    with warnings.catch_warnings():  # colour-science warns that matplotlib is absent; plots are not used
-        warnings.simplefilter("ignore")
-        import colour
-    return colour
+
+def _xy_to_xyz(xy) -> np.ndarray:
+    """XYZ with Y = 1 of a chromaticity (x, y)."""
+    x, y = xy
+    return np.array([x / y, 1.0, (1 - x - y) / y])
+
+
+def _rgb_to_xyz(chromaticities) -> np.ndarray:
+    """The normalised primary matrix (SMPTE RP 177): RGB of these primaries -> XYZ, white (1, 1, 1) -> its
+    white point at Y = 1."""
+    values = np.asarray(chromaticities, np.float64)
+    primaries = np.stack([_xy_to_xyz(xy) for xy in values[:6].reshape(3, 2)], axis=1)
+    return primaries * np.linalg.solve(primaries, _xy_to_xyz(values[6:]))[None, :]
+
+
+def _bradford(source_white, target_white) -> np.ndarray:
+    """XYZ under ``source_white`` -> XYZ under ``target_white`` (x, y each): the Bradford (von Kries) transform."""
+    source, target = _BRADFORD @ _xy_to_xyz(source_white), _BRADFORD @ _xy_to_xyz(target_white)
+    return np.linalg.inv(_BRADFORD) @ np.diag(target / source) @ _BRADFORD

@@ -14,7 +14,6 @@ import logging
 from pathlib import Path
 
 import numpy as np
-import tifffile
 
 from hdrcam.errors import InputError
 from hdrcam.limits import check_image_size
@@ -26,6 +25,8 @@ DECODED_COPY_BYTES = 12  # the float32 RGB image its callers make of the samples
 def read_tiff_samples(path: Path) -> np.ndarray:
     """The first image of a TIFF file: H x W x samples in the stored type (a one-sample image is H x W);
     InputError naming the file when it cannot be decoded or its samples are not RGB or grey."""
+    import tifffile  # here: a GPU machine's training (tools/gpu) reads EXR and .hdr only, and lacks it
+
     try:
         with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
             page = tiff.pages[0]

@@ -192,3 +192,24 @@ def test_a_multi_part_file_is_read_from_its_colour_part(tmp_path):
     with OpenEXR.File([depth, image]) as exr:
         exr.write(str(tmp_path / "parts.exr"))
     np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
+
+
+@pytest.mark.parametrize("chromaticities", [AP0, (0.708, 0.292, 0.170, 0.797, 0.131, 0.046, 0.3127, 0.3290),
+                                            (0.680, 0.320, 0.265, 0.690, 0.150, 0.060, 0.314, 0.351)])
+def test_the_primaries_matrix_is_colour_sciences(chromaticities):
+    """hdrcam's own (numpy only: a GPU machine's training lacks colour-science) against colour-science's, for
+    ACES AP0, Rec. 2020 and DCI-P3."""
+    import warnings
+
+    from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix, to_rec709_matrix
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+    source = colour.RGB_Colourspace("file", np.reshape(chromaticities[:6], (3, 2)), chromaticities[6:])
+    rec709 = colour.RGB_COLOURSPACES["ITU-R BT.709"]
+    np.testing.assert_allclose(to_rec709_matrix(chromaticities), colour.matrix_RGB_to_RGB(
+        source, rec709, chromatic_adaptation_transform="Bradford"), atol=1e-12)
+    adaptation = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        colour.xy_to_XYZ([1 / 3, 1 / 3]), colour.xy_to_XYZ([0.3127, 0.3290]), transform="Bradford")
+    np.testing.assert_allclose(equal_energy_xyz_to_rec709_matrix(), rec709.matrix_XYZ_to_RGB @ adaptation, atol=1e-12)

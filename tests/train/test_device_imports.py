@@ -1,7 +1,7 @@
 """Training runs where only torch, numpy, scipy, OpenCV, tqdm (and OpenEXR) are installed, as on a lent GPU
 machine (tools/gpu/train.sh): neither ``finetune`` nor ``design`` may import rawpy, colour-science, pyusb, ONNX,
 OpenVINO or tifffile - here made absent by an import hook in a fresh process - on photographs that include a
-luminance-chroma EXR (which once needed colour-science)."""
+luminance-chroma EXR (which once needed colour-science), an EXR in ACES primaries and a Radiance file."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import OpenEXR
 import pytest
@@ -49,6 +50,10 @@ def test_training_imports_nothing_a_gpu_machine_lacks(command, tmp_path):
     OpenEXR.File({"type": OpenEXR.scanlineimage}, {
         "Y": luminance.astype(np.float32), "RY": ((rgb[..., 0] - luminance) / luminance).astype(np.float32),
         "BY": ((rgb[..., 2] - luminance) / luminance).astype(np.float32)}).write(str(photographs / "yc.exr"))
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": (0.7347, 0.2653, 0.0, 1.0, 0.0001, -0.077, 0.32168,
+                                                                    0.33767)},  # ACES AP0, converted on reading
+                 {"RGB": rgb.astype(np.float32)}).write(str(photographs / "aces.exr"))
+    cv2.imwrite(str(photographs / "radiance.hdr"), rgb.astype(np.float32))
     (tmp_path / "runner.py").write_text(RUNNER)
     arguments = [*command, "--steps", "1", "--crop", "64", "--batch", "1",
                  "--data", f"{photographs}:0.5,procedural:0.5", "--out", str(tmp_path / "run")]
