@@ -6,9 +6,9 @@ Usage: OMP_NUM_THREADS=1 python tools/bench_raw_path.py runs/data/val [--count 3
 
 Per photograph (the folder's .exr/.hdr files, sorted, as `hdrcam evaluate --data FOLDER` lists them):
 
-1. Test crop as `hdrcam evaluate` takes it (hdrcam.data.scenes.SceneSource.test_scenes): a saturated_crop of
-   512 + 2 m px (m = PSF size // 2 = 31 for the shipped 63 px PSF) with rng seed TEST_SEED_BASE + the file's
-   index and preference 1.0, scaled by scale_to_clipped_fraction so exactly 1.5 % of the centre 512 x 512
+1. Test crop as `hdrcam evaluate` takes it (hdrcam.data.scenes.SceneSource.test_scenes): hdrcam.data.crops.test_crop,
+   512 + 2 m px (m = PSF size // 2 = 31 for the shipped 63 px PSF) about a bright pixel in its centre 512 px, with rng
+   seed TEST_SEED_BASE + the file's index, scaled by scale_to_clipped_fraction so exactly 1.5 % of the centre 512 x 512
    pixels have a channel above 1, clipped at 2^8. Units: linear sRGB, 1.0 = clip (the scene as evaluate uses it).
 2. Capture with the simulated A7 as a user would: the padded crop is written as a scene EXR and the
    checkpoint's PSF as a PSF EXR, then
@@ -72,10 +72,10 @@ from hdrcam.capture.notches import nearest_shutter
 from hdrcam.capture.scene import Scene
 from hdrcam.capture.simulated import BASE_ISO, DEFAULT_REFERENCE_EXPOSURE_S, SimulatedCamera
 from hdrcam.colorimetry import camera_from_srgb
-from hdrcam.data.crops import saturated_crop
+from hdrcam.data.crops import test_crop
 from hdrcam.data.hdr_folder import hdr_files, read_hdr_image
 from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction, scale_to_clipped_fraction
-from hdrcam.data.scenes import TEST_SEED_BASE
+from hdrcam.data.scenes import TEST_CONTEXT_PX, TEST_SEED_BASE
 from hdrcam.errors import HdrcamError
 from hdrcam.evaluate.metrics import psnr_linear, pu21_psnr
 from hdrcam.io.exr import read_exr, write_exr
@@ -113,10 +113,10 @@ def run_cli(arguments: list[str]) -> str:
     return result.stdout
 
 
-def test_crop(path: Path, index: int, margin_px: int) -> np.ndarray:
+def evaluate_crop(path: Path, index: int, margin_px: int) -> np.ndarray:
     """`hdrcam evaluate`'s test scene of the folder's ``index``-th file (SceneSource.test_scenes)."""
     rng = np.random.default_rng(TEST_SEED_BASE + index)
-    crop = saturated_crop(read_hdr_image(path), SIZE_PX + 2 * margin_px, rng, preference=1.0)
+    crop = test_crop(read_hdr_image(path), SIZE_PX, margin_px, TEST_CONTEXT_PX, rng)
     centre = crop[margin_px:crop.shape[0] - margin_px, margin_px:crop.shape[1] - margin_px]
     return scale_to_clipped_fraction(crop, TEST_CLIPPED_FRACTION, scale_region=centre)
 
@@ -158,7 +158,7 @@ def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: in
               reconstruct_options: list[str]) -> dict:
     psf = model.psf.astype(np.float32)
     margin = psf.shape[-1] // 2
-    crop = test_crop(path, index, margin)  # sRGB, 1.0 = clip, (512 + 2m)^2 x 3
+    crop = evaluate_crop(path, index, margin)  # sRGB, 1.0 = clip, (512 + 2m)^2 x 3
     t_true = true_exposure_s(profile, psf, seed)
     gain = DEFAULT_REFERENCE_EXPOSURE_S / t_true  # radiance 1.0 -> exactly one full well = white
     folder = work / path.stem

@@ -14,13 +14,14 @@ spreads into it through the PSF, as it does on a sensor; targets are the centre 
 from __future__ import annotations
 
 import math
+import warnings
 
 from pathlib import Path
 
 import numpy as np
 
 from hdrcam.data.augment import undistorted_rows, white_balance_jitter
-from hdrcam.data.crops import rotate_flip, saturated_crop
+from hdrcam.data.crops import rotate_flip, saturated_crop, test_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
 from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE,
@@ -30,6 +31,7 @@ from hdrcam.errors import InputError
 PROCEDURAL = "procedural"
 PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
 TEST_SEED_BASE = 1_000_000  # test scenes never share seeds with training draws
+TEST_CONTEXT_PX = 128  # of a test scene's own content around its scored centre (the A7 PSFs' margin is 127)
 TRAINING_DRAWS = 16  # crops drawn in a row before a training scene without light is an error
 
 
@@ -109,20 +111,28 @@ class SceneSource:
                          "light to saturate 1-3 % of their pixels; remove dark photographs from --data")
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
-        """``count`` fixed scenes (procedural) or one per file (folder), centre exactly 1.5 % above 1; each named
-        (night-NNN, or the file's stem - its name where two files share a stem). A photograph without light in
-        its crop stays in its place unscaled (no pixel above 1)."""
+        """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %
+        above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.test_crop); each
+        named (night-NNN, or the file's stem - its name where two files share a stem). A photograph without
+        light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
+        mirrored to fill it, with a warning."""
         scenes = []
         if self.folder is None:
+            canvas = max(PROCEDURAL_CANVAS_PX, size_px + 2 * TEST_CONTEXT_PX)
             for index in range(count):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
-                scenes.append((f"night-{index:03d}", _scaled(self._raw_crop(size_px + 2 * margin_px, rng)[0],
-                                                             TEST_CLIPPED_FRACTION, margin_px)))
+                scene = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
+                scenes.append((f"night-{index:03d}", _scaled(test_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
+                                                                       rng), TEST_CLIPPED_FRACTION, margin_px)))
         else:
             stems = [path.stem for path in self.folder.files]
             for index, path in enumerate(self.folder.files):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
-                crop = saturated_crop(self.folder.images[index], size_px + 2 * margin_px, rng, preference=1.0)
+                image = self.folder.images[index]
+                if min(image.shape[:2]) < size_px:
+                    warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
+                                  "test crop: mirrored to fill it, and the mirrored copies are scored too")
+                crop = test_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
                 name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
                 try:
                     scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))

@@ -248,3 +248,52 @@ def test_a_value_near_float32s_top_is_clipped_without_an_overflow_warning():
         warnings.simplefilter("error")
         scaled = scale_to_clipped_fraction(radiance, 0.1)
     assert scaled[0, 0].tolist() == [HIGHLIGHT_PEAK] * 3 and np.isfinite(scaled).all()
+
+
+def _lamps(tmp_path, height=400, width=600):
+    """Photographs whose brightest 1.5 % are four lamps (1.6 % of the pixels) on dim texture."""
+    rng = np.random.default_rng(0)
+    half = max(2, int(np.sqrt(0.004 * height * width)) // 2)
+    for index in range(6):
+        image = rng.uniform(0.01, 0.05, (height, width, 3)).astype(np.float32)
+        for _ in range(4):
+            y, x = rng.integers(half, height - half), rng.integers(half, width - half)
+            image[y - half:y + half + 1, x - half:x + half + 1] = 50.0
+        OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": image}).write(str(tmp_path / f"p{index}.exr"))
+    return tmp_path
+
+
+@pytest.mark.parametrize("data", ["procedural", "lamps"])
+def test_a_test_scenes_scored_centre_holds_a_highlight_and_does_not_depend_on_the_margin(tmp_path, data):
+    """The crop of size + 2 margin put its bright pixel anywhere in it: a lamp could sit in the margin only, the
+    scored centre then pushing dim texture over 1; and a PSF of another size scored other regions under the same
+    names."""
+    source = SceneSource("procedural" if data == "procedural" else str(_lamps(tmp_path)))
+    size = 96
+    centres = {}
+    for margin in (8, 31, 127):
+        scenes = source.test_scenes(size, margin, 4)
+        centres[margin] = [scene[margin:margin + size, margin:margin + size] for _, scene in scenes]
+        for (name, scene), centre in zip(scenes, centres[margin]):
+            assert scene.shape == (size + 2 * margin, size + 2 * margin, 3)
+            if data == "lamps":  # a lamp in the scored centre: 1000 times the texture
+                assert centre.max() > 100 * np.median(centre), (name, margin)
+    for margin in (31, 127):  # the scored region, before scaling, is the same: so is its scaled value here
+        for first, other in zip(centres[8], centres[margin]):
+            np.testing.assert_allclose(other / other.max(), first / first.max(), rtol=1e-5)
+
+
+def test_a_mixture_led_by_procedural_tests_on_procedural_scenes_only(tmp_path):
+    """A mixture's test set comes from its first source: procedural,DIR drew among both sources (a photograph
+    scored as night-003) and shifted every scene's random stream."""
+    mixture = SceneSource(f"procedural:0.5,{_lamps(tmp_path)}:0.5").test_scenes(64, 8, 4)
+    alone = SceneSource("procedural").test_scenes(64, 8, 4)
+    assert [name for name, _ in mixture] == [name for name, _ in alone]
+    for (_, first), (_, second) in zip(mixture, alone):
+        np.testing.assert_array_equal(first, second)
+
+
+def test_a_photograph_smaller_than_the_test_crop_is_warned_about(tmp_path):
+    _lamps(tmp_path, height=80, width=120)
+    with pytest.warns(UserWarning, match=r"p0.exr: 120 x 80 px, smaller than the 96 px test crop: mirrored"):
+        SceneSource(str(tmp_path)).test_scenes(96, 8, 0)

@@ -242,7 +242,8 @@ def test_a_partner_file_behind_another_psf_beside_a_checkpoint_is_refused(tmp_pa
 
 
 def test_evaluate_runs_the_partner_it_is_given(psf):
-    """A partner that paints nothing (every clipped channel at 1) leaves the pair's proposal at most white."""
+    """A partner that paints nothing (every clipped channel at 1) takes the pair's proposal down to white but where
+    the frame's streaks bear out the network alone (network_agreement: its judged cluster is kept whole)."""
     from hdrcam.data.scenes import SceneSource
     from hdrcam.evaluate.scoring import evaluate_models
 
@@ -250,13 +251,14 @@ def test_evaluate_runs_the_partner_it_is_given(psf):
     blank = types.SimpleNamespace(network=Painter(1.0), psf=model.psf)
     scores = {}
     for name, partner in (("alone", None), ("blank", {"hdrcam": blank})):
-        rows, examples = evaluate_models({"hdrcam": model}, SceneSource("procedural"), size_px=128, count=1,
-                                         partner=partner, examples=1)
-        scores[name] = examples[0].outputs["hdrcam-network"]
-    frame = examples[0].outputs["ldr"]
-    clipped = frame >= CLIP_LEVEL
+        rows, examples = evaluate_models({"hdrcam": model}, SceneSource("procedural"), size_px=128, count=3,
+                                         partner=partner, examples=3)
+        scores[name] = np.stack([example.outputs["hdrcam-network"] for example in examples])
+    clipped = np.stack([example.outputs["ldr"] for example in examples]) >= CLIP_LEVEL
     assert clipped.any() and scores["alone"][clipped].max() > 1.5
-    assert scores["blank"][clipped].max() <= 1.0 + 1e-6  # the minimum of a proposal and white
+    lowered = scores["blank"][clipped] < scores["alone"][clipped] - 1e-3
+    assert lowered.any() and np.all(scores["blank"][clipped][lowered] <= 1.0 + 1e-6)  # the minimum with white
+    assert np.all(scores["blank"][clipped] <= scores["alone"][clipped] + 1e-6)
 
 
 def test_the_streak_fit_runs_one_network(tmp_path, capsys):
