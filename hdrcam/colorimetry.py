@@ -29,49 +29,49 @@ def camera_to_srgb_matrix(xyz_to_camera: np.ndarray, as_shot_neutral: np.ndarray
 
 def to_rec709_matrix(chromaticities) -> np.ndarray | None:
     """3 x 3 matrix from linear RGB of these chromaticities (red x, y, green x, y, blue x, y, white x, y) to
-    linear Rec. 709 / D65, with Bradford adaptation between the white points (checked against colour-science's
-    ``matrix_RGB_to_RGB`` in the tests; numpy only, so a GPU machine's training reads such files), or None when
-    they are Rec. 709 / D65 already, absent, or span no gamut (all zero, as some writers store)."""
+    linear Rec. 709 / D65, with Bradford adaptation between the white points (equal to colour-science's
+    ``matrix_RGB_to_RGB`` to 1e-12, see the tests; numpy only, so a GPU machine's training reads such files), or
+    None when they are Rec. 709 / D65 already, absent, or span no gamut (all zero, as some writers store;
+    collinear primaries)."""
     if chromaticities is None:
         return None
     values = np.asarray(chromaticities, np.float64)
-    if values.shape != (8,) or not np.isfinite(values).all() or \
-            np.abs(values - REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
+    if values.shape != (8,) or np.abs(values - REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
         return None
-    primaries, white = values[:6].reshape(3, 2), values[6:]
-    if np.any(primaries[:, 1] == 0) or not white[1] > 0:
-        return None  # no gamut (all zero): taken as absent
-    xyz_columns = np.stack([_xy_to_xyz(xy) for xy in primaries], axis=1)
-    if abs(np.linalg.det(xyz_columns)) < 1e-6:
-        return None  # collinear primaries: taken as absent
-    return np.linalg.inv(_rgb_to_xyz(REC709_CHROMATICITIES)) @ _bradford(white, REC709_CHROMATICITIES[6:]) @ \
-        _rgb_to_xyz(values)
+    try:
+        source = normalised_primary_matrix(values)
+    except ValueError:
+        return None
+    return np.linalg.inv(normalised_primary_matrix(REC709_CHROMATICITIES)) @ \
+        _bradford(values[6:], REC709_CHROMATICITIES[6:]) @ source
 
 
-def equal_energy_xyz_to_rec709_matrix() -> np.ndarray:
-    """3 x 3 matrix from CIE XYZ whose white is equal-energy (x = y = 1/3: Radiance's, as in an XYZE file) to
-    linear Rec. 709 / D65, with Bradford adaptation."""
-    return np.linalg.inv(_rgb_to_xyz(REC709_CHROMATICITIES)) @ _bradford((1 / 3, 1 / 3), REC709_CHROMATICITIES[6:])
+EQUAL_ENERGY_XYZ_CHROMATICITIES = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1 / 3, 1 / 3)  # Radiance's XYZE pixels
+
+
+def normalised_primary_matrix(chromaticities) -> np.ndarray:
+    """3 x 3 RGB -> XYZ of primaries and white (red x, y, green x, y, blue x, y, white x, y; SMPTE RP 177): each
+    primary's (x, y, z) scaled so the three sum to the white's XYZ at Y = 1 - no division by a primary's y, so
+    CIE XYZ's own primaries (1, 0), (0, 1), (0, 0) work. ValueError for a white point with y <= 0, values that
+    are not finite, or primaries on one line."""
+    xy = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
+    white_x, white_y = xy[3]
+    if not np.all(np.isfinite(xy)) or white_y <= 0:
+        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the white point needs y > 0")
+    primaries = np.column_stack([xy[:3, 0], xy[:3, 1], 1.0 - xy[:3].sum(axis=1)]).T  # columns: x, y, z
+    if abs(np.linalg.det(primaries)) < 1e-12:
+        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the primaries lie on one line")
+    white = np.array([white_x / white_y, 1.0, (1.0 - white_x - white_y) / white_y])
+    return primaries * np.linalg.solve(primaries, white)[None, :]
 
 
 _BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
 
 
-def _xy_to_xyz(xy) -> np.ndarray:
-    """XYZ with Y = 1 of a chromaticity (x, y)."""
-    x, y = xy
-    return np.array([x / y, 1.0, (1 - x - y) / y])
-
-
-def _rgb_to_xyz(chromaticities) -> np.ndarray:
-    """The normalised primary matrix (SMPTE RP 177): RGB of these primaries -> XYZ, white (1, 1, 1) -> its
-    white point at Y = 1."""
-    values = np.asarray(chromaticities, np.float64)
-    primaries = np.stack([_xy_to_xyz(xy) for xy in values[:6].reshape(3, 2)], axis=1)
-    return primaries * np.linalg.solve(primaries, _xy_to_xyz(values[6:]))[None, :]
-
-
 def _bradford(source_white, target_white) -> np.ndarray:
     """XYZ under ``source_white`` -> XYZ under ``target_white`` (x, y each): the Bradford (von Kries) transform."""
-    source, target = _BRADFORD @ _xy_to_xyz(source_white), _BRADFORD @ _xy_to_xyz(target_white)
+    def xyz(xy) -> np.ndarray:
+        return np.array([xy[0] / xy[1], 1.0, (1 - xy[0] - xy[1]) / xy[1]])
+
+    source, target = _BRADFORD @ xyz(source_white), _BRADFORD @ xyz(target_white)
     return np.linalg.inv(_BRADFORD) @ np.diag(target / source) @ _BRADFORD

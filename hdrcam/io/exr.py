@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import OpenEXR
 
-from hdrcam.colorimetry import REC709_CHROMATICITIES, to_rec709_matrix
+from hdrcam.colorimetry import REC709_CHROMATICITIES, normalised_primary_matrix, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
@@ -207,21 +207,11 @@ def _luminance_chroma_to_rgb(luminance: np.ndarray, red_difference: np.ndarray, 
 
 def luminance_weights(chromaticities) -> np.ndarray:
     """(3,) weights of R, G, B in the luminance Y of the primaries and white point ``chromaticities`` (x, y of
-    red, green, blue, white): the Y row of the normalised primary matrix (SMPTE RP 177), as OpenEXR's RgbaYca
-    encoding computes it (Imf::RGBtoXYZ): each primary's x, y, z scaled so the three sum to the white's XYZ at
-    Y = 1, its weight the scaled y (no division by a primary's y: CIE XYZ's own primaries give (0, 1, 0)).
-    In numpy rather than colour-science (equal to its normalised_primary_matrix to 1e-12, see the tests): that
-    import takes about a second, and the training path runs where colour-science is absent. ValueError for a
-    white point with y <= 0 or primaries on one line."""
-    xy = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
-    (white_x, white_y) = xy[3]
-    if not np.all(np.isfinite(xy)) or white_y <= 0:
-        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the white point needs y > 0")
-    primaries = np.column_stack([xy[:3, 0], xy[:3, 1], 1.0 - xy[:3].sum(axis=1)]).T  # columns: x, y, z
-    white = np.array([white_x / white_y, 1.0, (1.0 - white_x - white_y) / white_y])
-    if abs(np.linalg.det(primaries)) < 1e-12:
-        raise ValueError(f"chromaticities {tuple(xy.ravel())}: the primaries lie on one line")
-    return np.linalg.solve(primaries, white) * xy[:3, 1]
+    red, green, blue, white): the Y row of the normalised primary matrix, as OpenEXR's RgbaYca encoding computes
+    it (Imf::RGBtoXYZ; hdrcam.colorimetry.normalised_primary_matrix, in numpy: colour-science's import takes
+    about a second, and the training path runs where it is absent). ValueError for a white point with y <= 0 or
+    primaries on one line."""
+    return normalised_primary_matrix(chromaticities)[1]
 
 
 def default_channel_names(pixels: np.ndarray) -> tuple[str, ...]:

@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix, to_rec709_matrix
+from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 
@@ -104,7 +104,7 @@ def _corrected(path: Path, values: np.ndarray, image_format: str, variables: lis
             divisor *= numbers
     if not np.array_equal(divisor, np.ones(3)):
         values /= divisor.astype(np.float32)
-    matrix = equal_energy_xyz_to_rec709_matrix() if image_format == FORMATS[1] else to_rec709_matrix(primaries)
+    matrix = to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES if image_format == FORMATS[1] else primaries)
     if matrix is not None:
         values = values @ matrix.T.astype(np.float32)
     return values

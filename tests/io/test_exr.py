@@ -201,7 +201,7 @@ def test_the_primaries_matrix_is_colour_sciences(chromaticities):
     ACES AP0, Rec. 2020 and DCI-P3."""
     import warnings
 
-    from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix, to_rec709_matrix
+    from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -212,4 +212,4 @@ def test_the_primaries_matrix_is_colour_sciences(chromaticities):
         source, rec709, chromatic_adaptation_transform="Bradford"), atol=1e-12)
     adaptation = colour.adaptation.matrix_chromatic_adaptation_VonKries(
         colour.xy_to_XYZ([1 / 3, 1 / 3]), colour.xy_to_XYZ([0.3127, 0.3290]), transform="Bradford")
-    np.testing.assert_allclose(equal_energy_xyz_to_rec709_matrix(), rec709.matrix_XYZ_to_RGB @ adaptation, atol=1e-12)
+    np.testing.assert_allclose(to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES), rec709.matrix_XYZ_to_RGB @ adaptation, atol=1e-12)

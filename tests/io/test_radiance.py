@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hdrcam.colorimetry import equal_energy_xyz_to_rec709_matrix
+from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
 from hdrcam.data.hdr_folder import read_hdr_image
 from hdrcam.errors import InputError
 
@@ -69,7 +69,7 @@ def test_exposure_and_colour_corrections_are_divided_out_and_a_missing_format_me
 def test_xyze_data_are_converted_from_equal_energy_xyz(tmp_path):
     xyz = _image()
     path = _with_header(tmp_path, xyz, b"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n", b"-Y %d +X %d" % (HEIGHT, WIDTH))
-    expected = _decoded(tmp_path, xyz) @ equal_energy_xyz_to_rec709_matrix().T
+    expected = _decoded(tmp_path, xyz) @ to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES).T
     np.testing.assert_allclose(read_hdr_image(path), np.clip(expected, 0, None), rtol=1e-5, atol=1e-6)
     grey = np.full((2, 2, 3), 3.0, np.float32)  # equal-energy white reads as neutral
     path = _with_header(tmp_path, grey, b"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n", b"-Y 2 +X 2")
