@@ -53,6 +53,7 @@ REFINEMENTS = 3
 BOUND_BAND = 1.25  # pixels within this factor of the labelled bound are kept for the refinements
 ADC_ZERO_SIGMAS = 2.0  # the shorter frame's prediction above the ADC's zero (module docstring)
 SLOPE_ERROR = 0.01  # the slope's relative standard error, at most
+SPREAD_PRECISION = 1e-9  # of the sum of z^2: a spread of z below it is float64 rounding, not contrast
 SUMS_MIN_SIGNAL_DN = 100.0  # the shorter frame's mean signal for the ratio of sums: a DN of black error, 1 %
 IMPLAUSIBLE_STOPS = 0.5  # a working shutter is off its label by a few per cent; half a stop is 41 %
 SUMS = 10  # per pair: count, and the sums of y_k, y_k+1, z, z y_k, z y_k+1, z^2, y_k^2, y_k+1^2, y_k y_k+1
@@ -176,8 +177,9 @@ def _ratio(totals: np.ndarray) -> tuple[float | None, str, str]:
     slope = centred(instrument_longer, instrument, longer) / covariance if covariance > 0 else 0.0
     residual = centred(longer_squared, longer, longer) - 2 * slope * centred(shorter_longer, shorter, longer) + \
         slope ** 2 * centred(shorter_squared, shorter, shorter)  # of y_k+1 - slope y_k, times count
-    error = np.sqrt(max(residual, 0.0) * centred(instrument_squared, instrument, instrument) / count) / covariance \
-        if covariance > 0 else np.inf  # the slope's standard error
+    spread = centred(instrument_squared, instrument, instrument)  # of z; lost to rounding on a uniform field
+    error = np.sqrt(max(residual, 0.0) * spread / count) / covariance \
+        if covariance > 0 and spread > SPREAD_PRECISION * instrument_squared else np.inf  # the slope's std. error
     mean_dn = shorter / count
     if slope > 0 and error <= SLOPE_ERROR * slope:
         numerator, denominator, how = slope, 1.0, "slope"

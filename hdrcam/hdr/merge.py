@@ -8,8 +8,8 @@ not favour samples that happen to be low. Clipped samples (at or above the clip 
 position from the data - the pile-up below the metadata white level, hdrcam.io.raw_clipping - minus a
 margin, dilated so their neighbours are not trusted either) get no weight; a pixel clipped in every frame
 keeps the lower bound clip / t_shortest and is flagged. Exposure ratios are estimated from the data
-(hdrcam.hdr.exposure_ratios: a slope free of black-level errors), starting from the EXIF times - read as the shutter's true
-times where a Sony body labels its 1/3 EV notches nominally (1/125 s is really 2^-7 s:
+(hdrcam.hdr.exposure_ratios: a slope free of black-level errors), starting from the EXIF times - read as the
+shutter's true times where a Sony body labels its 1/3 EV notches nominally (1/125 s is really 2^-7 s:
 hdrcam.capture.notches.true_exposure_s), which also anchor the absolute scale: a bracket from 1/1000 s, labels
 taken as they are, was 4.3 % dark, and brackets of other notches disagreed by up to 4 %; other makes' labels are
 taken as written.

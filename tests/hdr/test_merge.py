@@ -475,3 +475,19 @@ def test_lights_given_as_their_own_darks_are_refused_and_darks_that_recorded_lig
         fuse([tmp_path / "lights"], PROFILE.camera, darks=tmp_path / "lights")  # was a black image, exit 0
     with pytest.warns(UserWarning, match="a dark frame, recorded light"):  # a shot of a brighter scene
         fuse([tmp_path / "lights"], PROFILE.camera, darks=tmp_path / "other")
+
+
+def test_a_uniform_instrument_gives_the_sums_without_a_numpy_warning():
+    """A uniform third frame: its spread, a difference of two equal sums, came out -1e-9 by rounding, and its
+    square root put numpy's "invalid value" warning on stderr (calibrate of a bracket with a uniform background)."""
+    from hdrcam.hdr.exposure_ratios import _ratio
+
+    count, shorter_dn, ratio, instrument_dn = 1000.0, 300.0, 8.0, 1000.1
+    shorter, instrument = count * shorter_dn, count * instrument_dn
+    totals = np.array([count, shorter, ratio * shorter, instrument, instrument * shorter_dn + 1.0, instrument * ratio *
+                       shorter_dn, instrument * instrument / count - 1e-6, count * shorter_dn ** 2 * 1.01,
+                       count * (ratio * shorter_dn) ** 2 * 1.01, count * ratio * shorter_dn ** 2 * 1.01])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        estimate, how, _ = _ratio(totals)
+    assert how == "sums" and estimate == pytest.approx(ratio)
