@@ -4,12 +4,12 @@ A bracket is a run of frames from one camera (for files that name none, one sens
 ``hdrcam.io.raw.sensor_fingerprint``) at one ISO, aperture and frame size, taken close together (no gap longer
 than ``max_gap_s`` plus twice the previous exposure: a long exposure is followed by an in-camera dark frame as
 long, Long Exposure NR, on by default on Sony bodies), with distinct exposure times; a repeated exposure starts
-the next bracket, after the longest pause since the frame it repeats. Brackets shot alternately (e.g. at two
-ISOs) are separated by their settings. Every file of the folder is offered to LibRaw (no list of suffixes): one
-it does not open, or that fits no bracket, is reported with the reason - never silently dropped. A
-byte-identical copy of another RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is named as a duplicate
-and left out, so that it neither splits a bracket nor stands for a second exposure. Hidden files and hdrcam's
-own JSON manifests are not candidates.
+the next bracket, after a pause clearly the longest since the frame it repeats, else at the repeat. Brackets
+shot alternately (e.g. at two ISOs) are separated by their settings. Every file of the folder is offered to
+LibRaw (no list of suffixes): one it does not open, or that fits no bracket, is reported with the reason - never
+silently dropped. A byte-identical copy of another RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is
+named as a duplicate and left out, so that it neither splits a bracket nor stands for a second exposure. Hidden
+files and hdrcam's own JSON manifests are not candidates.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+
+import numpy as np
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
 from hdrcam.capture.notches import exposure_label
@@ -79,17 +81,23 @@ def _too_late(previous: RawMetadata, frame: RawMetadata, max_gap_s: float) -> bo
     return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + BUSY_EXPOSURES * previous.exposure_s
 
 
+CLEAR_PAUSE_S = 2.0  # EXIF times are whole seconds: a pause this much longer than every other one is a break
+
+
 def _widest_pause(current: list[RawMetadata], frame: RawMetadata, first: int) -> int:
     """Where the next bracket begins when ``frame`` repeats an exposure of ``current`` (the earliest index it may
-    begin at: ``first``): after the longest pause from there on, the latest on a tie (before ``frame`` when
-    there are no times). A camera's own bracket shoots its frames out of order (0, -1, +1 EV) and fast: two
-    such sets 5 s apart were split at the repeat instead, the second set's first frame joining the first set."""
+    begin at: ``first``): after a pause CLEAR_PAUSE_S longer than every other since ``first``, else at the
+    repeat (``frame`` itself). A camera's own bracket shoots its frames out of order (0, -1, +1 EV) and fast: two
+    such sets 5 s apart were split at the repeat, the second set's first frame joining the first set; a hand-set
+    bracket's pauses vary by a second or two, and split at its longest pause it lost a frame to the next."""
     run = current + [frame]
     pauses = [(run[index].timestamp - run[index - 1].timestamp).total_seconds()
               if run[index].timestamp is not None and run[index - 1].timestamp is not None else 0.0
               for index in range(first, len(run))]
-    longest = max(pauses)
-    return first + max(index for index, pause in enumerate(pauses) if pause == longest)
+    widest = int(np.argmax(pauses))
+    others = pauses[:widest] + pauses[widest + 1:]
+    clear = not others or pauses[widest] >= max(others) + CLEAR_PAUSE_S
+    return first + widest if clear else len(current)
 
 
 def _same_exposure(a: RawMetadata, b: RawMetadata) -> bool:
@@ -119,14 +127,18 @@ def _taken(frame: RawMetadata) -> tuple:
 
 
 def subfolder_hint(folder: Path) -> str:
-    """Where files lie below a folder that holds none itself (a memory card's root: its frames are in
-    DCIM/100MSDCF), as ': ingest reads one folder, not its subfolders - e.g. PATH (N files)', else ''."""
-    for root, folders, _ in os.walk(folder):  # top down, stopping at the first folder with files
-        folders[:] = sorted(name for name in folders if not name.startswith("."))
-        below = Path(root)
-        count = len(raw_files(below)) if below != folder else 0
-        if count:
-            return f": ingest reads one folder, not its subfolders - e.g. {below} ({count} files)"
+    """Where files lie below a folder whose own gave no bracket (a memory card's root: its frames are in
+    DCIM/100MSDCF, the DCF layout every camera writes; beside it Sony's AVF_INFO holds index files), as
+    ': ingest reads one folder, not its subfolders - e.g. PATH (N files)': the first folder below DCIM that
+    holds files, else the first folder that does; '' for none."""
+    for top in (folder / "DCIM", folder):
+        for root, folders, _ in os.walk(top) if top.is_dir() else ():  # top down, the first with files
+            folders[:] = sorted(name for name in folders if not name.startswith("."))
+            below = Path(root)
+            count = len(raw_files(below)) if below != folder else 0
+            if count:
+                return (f": ingest reads one folder, not its subfolders - e.g. {below} ({count} "
+                        f"file{'s' if count > 1 else ''})")
     return ""
 
 

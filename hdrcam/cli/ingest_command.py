@@ -29,7 +29,7 @@ def run(arguments: argparse.Namespace) -> int:
         reasons = "; ".join(result.report[:3])
         if len(result.report) > 3:
             reasons += f"; and {len(result.report) - 3} more"
-        hint = subfolder_hint(arguments.folder) if not result.report else ""
+        hint = subfolder_hint(arguments.folder)
         raise InputError(f"{arguments.folder}: no brackets found ({reasons or 'no RAW files in it'}); "
                          f"give a folder of bracketed RAW frames{hint}")
     names = [out / f"bracket-{index:02d}.json" for index in range(1, len(result.brackets) + 1)]

@@ -91,6 +91,18 @@ def test_a_card_root_is_refused_pointing_at_the_folder_with_the_frames(tmp_path,
     frames = tmp_path / "card" / "DCIM" / "100MSDCF"
     frames.mkdir(parents=True)
     _write_frames(frames, EXPOSURES[:2])
+    (tmp_path / "card" / "AVF_INFO").mkdir()  # Sony's index files, beside DCIM and sorting before it
+    (tmp_path / "card" / "AVF_INFO" / "AVIN0001.INP").write_bytes(b"index")
+    (tmp_path / "card" / "NIKON001.DSC").write_bytes(b"not raw")  # a file of the root's own: a line in the report
     assert main(["ingest", str(tmp_path / "card")]) == 1
     assert capsys.readouterr().err.strip().endswith(f"ingest reads one folder, not its subfolders - e.g. {frames} "
                                                     "(2 files)")
+
+
+def test_hand_set_brackets_back_to_back_split_at_the_repeat(tmp_path):
+    """A hand-set bracket pauses a second or two between shots; split at its longest pause (2 s, inside the first
+    bracket) instead of the repeat, the first bracket lost its first frame to the second."""
+    _write_frames(tmp_path, (1 / 1000, 1 / 250, 1 / 60, 1 / 1000, 1 / 250, 1 / 60), starts_s=(0, 2, 3, 4, 6, 7))
+    result = ingest_folder(tmp_path)
+    assert [[f.path.name for f in bracket] for bracket in result.brackets] == [
+        ["frame-00.dng", "frame-01.dng", "frame-02.dng"], ["frame-03.dng", "frame-04.dng", "frame-05.dng"]]
