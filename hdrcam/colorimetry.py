@@ -31,11 +31,12 @@ def to_rec709_matrix(chromaticities) -> np.ndarray | None:
     """3 x 3 matrix from linear RGB of these chromaticities (red x, y, green x, y, blue x, y, white x, y) to
     linear Rec. 709 / D65, with Bradford adaptation between the white points (equal to colour-science's
     ``matrix_RGB_to_RGB`` to 1e-12, see the tests; numpy only, so a GPU machine's training reads such files), or
-    None when they are Rec. 709 / D65 already, absent, or span no gamut (all zero, as some writers store;
-    collinear primaries)."""
-    if chromaticities is None:
+    None when they are Rec. 709 / D65 already, absent (None, or not eight numbers), or span no gamut (all zero, as
+    some writers store; collinear primaries)."""
+    try:
+        values = np.asarray(chromaticities, np.float64)
+    except (TypeError, ValueError):  # not numbers (an attribute of another type under this name)
         return None
-    values = np.asarray(chromaticities, np.float64)
     if values.shape != (8,) or np.abs(values - REC709_CHROMATICITIES).max() <= CHROMATICITY_TOLERANCE:
         return None
     try:

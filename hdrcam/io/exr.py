@@ -4,9 +4,9 @@ Reading returns float32 channels at full resolution. Luminance-chroma files (Y, 
 OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
 (Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
 hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
-Rec. 2020, ...) is converted by colour-science's RGB-to-RGB matrix with Bradford adaptation between the white
-points (the attribute then no longer describes the pixels and is dropped); primaries that span no gamut (all
-zero, as some writers store) count as absent. Damaged files raise :class:`~hdrcam.errors.InputError` with
+Rec. 2020, ...) is converted with Bradford adaptation between the white points (hdrcam.colorimetry; the
+attribute then no longer describes the pixels and is dropped); primaries that span no gamut (all zero, as some
+writers store) count as absent. Damaged files raise :class:`~hdrcam.errors.InputError` with
 one line.
 
 Writing is atomic, float32 by default or half on request, ZIP-compressed by default or uncompressed on
@@ -31,7 +31,7 @@ from hdrcam.colorimetry import REC709_CHROMATICITIES, normalised_primary_matrix,
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
-from hdrcam.limits import check_image_size
+from hdrcam.limits import check_image_size, check_memory
 from hdrcam.parallel import worker_threads
 
 HALF_MAX = float(np.finfo(np.float16).max)  # 65504
@@ -89,8 +89,13 @@ def read_exr_attributes(path: Path) -> dict[str, Any]:
 
 
 def _header(data: bytes) -> dict[str, Any]:
+    return _part_headers(data)[0]
+
+
+def _part_headers(data: bytes) -> list[dict[str, Any]]:
+    """Every part's header (a single-part file has one), without decoding pixels."""
     with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), header_only=True) as header_file:
-        return dict(header_file.header())
+        return [dict(part.header) for part in header_file.parts] or [dict(header_file.header())]
 
 
 def _user_attributes(header: dict[str, Any]) -> dict[str, Any]:
@@ -109,7 +114,7 @@ def read_exr(path: Path) -> ExrImage:
         raise InputError(f"{path}: no such file")
     data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     try:
-        _check_decoded_size(path, _header(data))
+        _check_decoded_size(path, _part_headers(data))
         with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
             part = _image_part(exr_file.parts)
             header = dict(part.header)
@@ -175,13 +180,20 @@ def _openexr_quiet():
         yield
 
 
-def _check_decoded_size(path: Path, header: dict) -> None:
-    """Refuse, from the header alone, an image whose pixels would not fit in memory."""
-    window_min, window_max = header["dataWindow"]
-    height, width = int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1
-    channels = max(len(header.get("channels", ())), 1)
-    check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,
-                     "use a smaller image")
+def _check_decoded_size(path: Path, headers: list[dict]) -> None:
+    """Refuse, from the headers alone, an image whose pixels would not fit in memory (every part is decoded)."""
+    sizes = []
+    for header in headers:
+        window_min, window_max = header["dataWindow"]
+        sizes.append((int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1,
+                      max(len(header.get("channels", ())), 1)))
+    if len(sizes) == 1:
+        height, width, channels = sizes[0]
+        check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,
+                         "use a smaller image")
+    else:
+        check_memory(f"{path}: {len(sizes)} parts", sum(height * width * channels * DECODED_BYTES_PER_SAMPLE
+                                                         for height, width, channels in sizes), "use a smaller image")
 
 
 def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, height: int, width: int,

@@ -26,10 +26,13 @@ import numpy as np
 from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
+from hdrcam.limits import check_image_size
 
 RADIANCE_MAGIC = b"#?"
 FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
-_RESOLUTION = re.compile(rb"([-+])([XY]) (\d+) ([-+])([XY]) (\d+)")
+_RESOLUTION = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
+DECODED_BYTES_PER_PIXEL = 36  # OpenCV's float BGR image, its RGB copy and the corrected one (float32 each)
+LARGEST_CORRECTION = 1e30  # EXPOSURE and COLORCORR between its inverse and it: the pixels stay within float32
 MAX_HEADER_BYTES = 1 << 16  # a header is a few lines; a file without an end to it within this is not Radiance
 
 
@@ -55,6 +58,8 @@ def read_radiance(path: Path) -> np.ndarray:
         raise InputError(f"{path}: Radiance resolution line {shown!r} is not '<+|-><X|Y> N <+|-><Y|X> M'")
     image_format = _format(path, variables)
     major_sign, major_axis, major, minor_sign, _, minor = match.groups()
+    height, width = (int(major), int(minor)) if major_axis == b"Y" else (int(minor), int(major))
+    check_image_size(str(path), height, width, DECODED_BYTES_PER_PIXEL, "give a smaller image")
     standard = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (int(major), int(minor))
     with c_stderr_silenced():  # OpenCV prints its own lines for damaged data
         decoded = cv2.imdecode(np.frombuffer(standard + data[resolution_end + 1:], np.uint8),
@@ -94,10 +99,14 @@ def _corrected(path: Path, values: np.ndarray, image_format: str, variables: lis
             raise InputError(f"{path}: Radiance {name.decode()}={value.decode('ascii', 'replace').strip()} is not "
                              "numbers") from None
         expected = {b"EXPOSURE": 1, b"COLORCORR": 3, b"PRIMARIES": 8}[name]
-        if numbers.size != expected or (name != b"PRIMARIES" and not np.all(numbers > 0)):
+        scale = name != b"PRIMARIES"
+        usable = np.all(np.isfinite(numbers)) and (not scale or np.all((numbers >= 1 / LARGEST_CORRECTION) &
+                                                                       (numbers <= LARGEST_CORRECTION)))
+        if numbers.size != expected or not usable:
             raise InputError(f"{path}: Radiance {name.decode()}= needs {expected} "
-                             f"{'positive ' if name != b'PRIMARIES' else ''}numbers, got "
-                             f"{value.decode('ascii', 'replace').strip()!r}")
+                             f"{'positive ' if scale else ''}finite numbers"
+                             f"{f' from {1 / LARGEST_CORRECTION:g} to {LARGEST_CORRECTION:g}' if scale else ''}, "
+                             f"got {value.decode('ascii', 'replace').strip()!r}")
         if name == b"PRIMARIES":
             primaries = numbers
         else:

@@ -194,6 +194,24 @@ def test_a_multi_part_file_is_read_from_its_colour_part(tmp_path):
     np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
 
 
+def test_a_multi_part_file_too_large_for_memory_is_refused_by_all_its_parts(tmp_path, monkeypatch):
+    """Every part is decoded: the check read the first part's header only (a small depth part before the image)."""
+    from hdrcam import limits
+    from hdrcam.errors import TooLargeError
+
+    corner = np.array([0, 0], np.int32)
+    header = {"type": OpenEXR.scanlineimage, "compression": OpenEXR.ZIP_COMPRESSION,
+              "displayWindow": (corner, np.array([299, 299], np.int32))}
+    depth = OpenEXR.Part(dict(header, name="depth", dataWindow=(corner, np.array([3, 3], np.int32))),
+                         {"Z": np.ones((4, 4), np.float32)})
+    image = OpenEXR.Part(dict(header, name="beauty"), {name: np.ones((300, 300), np.float32) for name in "RGB"})
+    with OpenEXR.File([depth, image]) as exr:
+        exr.write(str(tmp_path / "parts.exr"))
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 1_000_000)
+    with pytest.raises(TooLargeError, match=r"parts.exr: 2 parts needs about 3.24 MB"):
+        read_exr(tmp_path / "parts.exr")
+
+
 @pytest.mark.parametrize("chromaticities", [AP0, (0.708, 0.292, 0.170, 0.797, 0.131, 0.046, 0.3127, 0.3290),
                                             (0.680, 0.320, 0.265, 0.690, 0.150, 0.060, 0.314, 0.351)])
 def test_the_primaries_matrix_is_colour_sciences(chromaticities):
@@ -212,7 +230,8 @@ def test_the_primaries_matrix_is_colour_sciences(chromaticities):
         source, rec709, chromatic_adaptation_transform="Bradford"), atol=1e-12)
     adaptation = colour.adaptation.matrix_chromatic_adaptation_VonKries(
         colour.xy_to_XYZ([1 / 3, 1 / 3]), colour.xy_to_XYZ([0.3127, 0.3290]), transform="Bradford")
-    np.testing.assert_allclose(to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES), rec709.matrix_XYZ_to_RGB @ adaptation, atol=1e-12)
+    np.testing.assert_allclose(to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES), rec709.matrix_XYZ_to_RGB @ adaptation,
+                               atol=1e-12)
 
 
 def test_subsampled_chroma_is_reconstructed_as_openexr_does(tmp_path):

@@ -43,9 +43,13 @@ def _with_header(tmp_path, stored: np.ndarray, header: bytes, resolution: bytes)
 
 
 @pytest.mark.parametrize("resolution, stored", [
+    (b"-Y %d +X %d" % (HEIGHT, WIDTH), lambda image: image),  # the standard: top to bottom, left to right
     (b"+Y %d +X %d" % (HEIGHT, WIDTH), lambda image: image[::-1]),  # bottom to top
     (b"-Y %d -X %d" % (HEIGHT, WIDTH), lambda image: image[:, ::-1]),  # right to left
+    (b"+Y  %d  -X %d" % (HEIGHT, WIDTH), lambda image: image[::-1, ::-1]),  # (Radiance allows any white space)
     (b"+X %d -Y %d" % (WIDTH, HEIGHT), lambda image: image.transpose(1, 0, 2)),  # scanlines down the columns
+    (b"+X %d +Y %d" % (WIDTH, HEIGHT), lambda image: image[::-1].transpose(1, 0, 2)),
+    (b"-X %d -Y %d" % (WIDTH, HEIGHT), lambda image: image[:, ::-1].transpose(1, 0, 2)),
     (b"-X %d +Y %d" % (WIDTH, HEIGHT), lambda image: image[::-1, ::-1].transpose(1, 0, 2)),
 ])
 def test_every_orientation_reads_as_the_image_it_stores(tmp_path, resolution, stored):
@@ -79,8 +83,12 @@ def test_xyze_data_are_converted_from_equal_energy_xyz(tmp_path):
 @pytest.mark.parametrize("header, resolution, message", [
     (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbf\n", b"-Y 6 +X 9", r"FORMAT=32-bit_rle_rgbf is not one of"),
     (b"#?RADIANCE\n", b"-Y 6 -Y 9", r"resolution line '-Y 6 -Y 9' is not"),
-    (b"#?RADIANCE\nCOLORCORR=2 1\n", b"-Y 6 +X 9", r"COLORCORR= needs 3 positive numbers, got '2 1'"),
+    (b"#?RADIANCE\nCOLORCORR=2 1\n", b"-Y 6 +X 9",
+     r"COLORCORR= needs 3 positive finite numbers from 1e-30 to 1e\+30, got .2 1."),
     (b"#?RADIANCE\nEXPOSURE=abc\n", b"-Y 6 +X 9", r"EXPOSURE=abc is not numbers"),
+    (b"#?RADIANCE\nEXPOSURE=1e300\n", b"-Y 6 +X 9", r"EXPOSURE= needs 1 positive finite numbers from 1e-30"),
+    (b"#?RADIANCE\nPRIMARIES=nan 0.33 0.3 0.6 0.15 0.06 0.3127 0.329\n", b"-Y 6 +X 9", r"PRIMARIES= needs 8 finite"),
+    (b"#?RADIANCE\n", b"-Y 70000 +X 70000", r"file.hdr \(70000 x 70000 px\) needs about"),
 ])
 def test_an_unusable_header_is_refused_in_one_line_that_says_why(tmp_path, header, resolution, message):
     path = _with_header(tmp_path, _image(), header, resolution)
