@@ -2,12 +2,13 @@
 
 Steps (issue 4; REFERENCE.md sec. 5): inverse-variance merge of the bracket in camera RGB (black level
 subtracted: a dark frame would add its own read noise, and the annulus below removes any dark offset);
-hot pixels found in the darks and samples clipped in every frame get no weight; each
-source's background is the per-channel median of an annulus just outside its window; the PSF, the sources'
-positions and fluxes are fitted jointly on the Bayer samples (:mod:`hdrcam.calibrate.effective_psf`), so the
+hot pixels found in the darks and samples clipped in every frame get no weight; sources closer to another
+than their windows and PSFs allow are left out (a pitch too fine for the size is refused, naming the size it
+allows); each source's background is a plane fitted per channel to an annulus just outside its window; the
+PSF, the sources' positions and fluxes are fitted jointly on the Bayer samples (:mod:`hdrcam.calibrate.effective_psf`), so the
 green centroid lands on the centre pixel and all channels share that sub-pixel shift; the result is
 cropped to a given size, or to the smallest size that holds a given energy fraction, and each channel is
-normalised to unit sum.
+normalised to unit sum. A fit whose residuals stay well above the noise is warned about.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ class PsfCalibration:
     frames: list[RawFrame]
     darks: list[RawFrame] | None
     hot_pixels: int
-    rejected_sources: int  # detected but too close to the frame's edge, clipped everywhere, or faint
+    rejected_sources: int  # detected but crowded, too close to the frame's edge, clipped everywhere, or faint
 
     @property
     def background(self) -> np.ndarray:
@@ -118,6 +119,44 @@ def warn_negative_energy(fit: EffectivePsf) -> None:
                       stacklevel=2)
 
 
+def crowded(sources: list[tuple[int, int]], reach_px: int) -> set[tuple[int, int]]:
+    """The sources with another closer than ``reach_px`` (the larger of the row and column distances): a window
+    of half-width h around each and PSFs of radius r overlap when sources are less than h + r + 1 apart, the
+    neighbour's light then fitted as the source's own (a 72 px pinhole pitch with an 81 px PSF: L1 26-45 %)."""
+    if len(sources) < 2:
+        return set()
+    points = np.array(sources)
+    distance = np.abs(points[:, None, :] - points[None, :, :]).max(axis=-1)
+    np.fill_diagonal(distance, reach_px)
+    return {sources[index] for index in np.flatnonzero(distance.min(axis=1) < reach_px)}
+
+
+def _crowding_advice(sources: list[tuple[int, int]], size_px: int) -> str:
+    """Why crowded sources were left out, with the largest --size their spacing allows."""
+    points = np.array(sources)
+    distance = np.abs(points[:, None, :] - points[None, :, :]).max(axis=-1)
+    np.fill_diagonal(distance, np.iinfo(distance.dtype).max)
+    spacing = int(np.median(distance.min(axis=1)))
+    largest = spacing - WINDOW_MARGIN_PX - 1 - (spacing - WINDOW_MARGIN_PX) % 2  # the largest odd size that fits
+    return (f"closer to another than a {size_px} px PSF and its window allow (pinholes {spacing} px apart: "
+            f"--size {largest} at most, or a sparser target)")
+
+
+MISFIT_CHI2 = 2.0  # reduced chi2 of a good fit: 0.9-1.2 (PRNU of 1 %, vignetting, dust, colour across the plate)
+
+
+def warn_misfit(fit: EffectivePsf, crowded_count: int) -> None:
+    """Warn when the model leaves residuals well above the noise (reduced chi2 over MISFIT_CHI2): measured with
+    frames that moved 0.1 px between exposures (chi2 6.7, L1 8-16 %) and pinholes whose neighbours' light falls
+    in their windows (chi2 13-38, L1 10-45 %), each without any other warning before."""
+    if fit.reduced_chi2 > MISFIT_CHI2:
+        crowding = f"; {crowded_count} crowded pinholes were left out" if crowded_count else ""
+        warnings.warn(f"the PSF model leaves {fit.reduced_chi2:.1f} times the noise in the residuals (reduced chi2 "
+                      f"over {MISFIT_CHI2:g}{crowding}): frames that moved between exposures, pinholes whose "
+                      "neighbours' light reaches their window, a resolved (too large) pinhole or a changing "
+                      "background put the PSF several % off - check the bench and the bracket", stacklevel=2)
+
+
 def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
                   energy_fraction: float | None = None) -> PsfCalibration:
     if isinstance(size_px, bool) or not isinstance(size_px, int) or size_px < 3 or size_px % 2 == 0:
@@ -136,8 +175,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))
     channels = channel_map(meta.cfa_pattern, height, width)
     half = size_px // 2 + WINDOW_MARGIN_PX
-    windows, edge, clipped, faint = [], 0, 0, 0
-    for row, column in detect_sources(merge.rate, ~untrusted, size_px):
+    found, edge, clipped, faint = {}, 0, 0, 0
+    for row, column in detect_sources(merge.rate, ~untrusted, size_px // 2 + 1):
         window = cut_window(merge.rate, weight, channels, row, column, half)
         if window is None:
             edge += 1
@@ -146,10 +185,13 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
         elif peak_significance(window) < SOURCE_SIGMAS:
             faint += 1
         else:
-            windows.append(window)
-    rejected = edge + clipped + faint
+            found[(row, column)] = window
+    crowded_sources = crowded(list(found), half + size_px // 2 + 1)  # among real sources, not noise peaks
+    windows = [window for position, window in found.items() if position not in crowded_sources]
+    rejected = edge + clipped + faint + len(crowded_sources)
     if not windows:
         reasons = [f"{count} {reason}" for count, reason in (
+            (len(crowded_sources), _crowding_advice(list(found), size_px) if crowded_sources else ""),
             (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
             (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
         spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
@@ -160,6 +202,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     check_enough_samples(windows, size_px)
     fit = fit_effective_psf(windows, size_px)
     warn_negative_energy(fit)
+    warn_misfit(fit, len(crowded_sources))
     crop = size_px if energy_fraction is None else crop_size_for_energy(fit.psf, energy_fraction)
     start = size_px // 2 - crop // 2
     psf = fit.psf[:, start:start + crop, start:start + crop]
