@@ -6,7 +6,7 @@ Usage: OMP_NUM_THREADS=1 python tools/bench_raw_path.py runs/data/val [--count 3
 
 Per photograph (the folder's .exr/.hdr files, sorted, as `hdrcam evaluate --data FOLDER` lists them):
 
-1. Test crop as `hdrcam evaluate` takes it (hdrcam.data.scenes.SceneSource.test_scenes): hdrcam.data.crops.test_crop,
+1. Test crop as `hdrcam evaluate` takes it (hdrcam.data.scenes.SceneSource.test_scenes): hdrcam.data.crops.scored_crop,
    512 + 2 m px (m = PSF size // 2 = 31 for the shipped 63 px PSF) about a bright pixel in its centre 512 px, with rng
    seed TEST_SEED_BASE + the file's index, scaled by scale_to_clipped_fraction so exactly 1.5 % of the centre 512 x 512
    pixels have a channel above 1, clipped at 2^8. Units: linear sRGB, 1.0 = clip (the scene as evaluate uses it).
@@ -72,7 +72,7 @@ from hdrcam.capture.notches import nearest_shutter
 from hdrcam.capture.scene import Scene
 from hdrcam.capture.simulated import BASE_ISO, DEFAULT_REFERENCE_EXPOSURE_S, SimulatedCamera
 from hdrcam.colorimetry import camera_from_srgb
-from hdrcam.data.crops import test_crop
+from hdrcam.data.crops import scored_crop
 from hdrcam.data.hdr_folder import hdr_files, read_hdr_image
 from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction, scale_to_clipped_fraction
 from hdrcam.data.scenes import TEST_CONTEXT_PX, TEST_SEED_BASE
@@ -116,7 +116,7 @@ def run_cli(arguments: list[str]) -> str:
 def evaluate_crop(path: Path, index: int, margin_px: int) -> np.ndarray:
     """`hdrcam evaluate`'s test scene of the folder's ``index``-th file (SceneSource.test_scenes)."""
     rng = np.random.default_rng(TEST_SEED_BASE + index)
-    crop = test_crop(read_hdr_image(path), SIZE_PX, margin_px, TEST_CONTEXT_PX, rng)
+    crop = scored_crop(read_hdr_image(path), SIZE_PX, margin_px, TEST_CONTEXT_PX, rng)
     centre = crop[margin_px:crop.shape[0] - margin_px, margin_px:crop.shape[1] - margin_px]
     return scale_to_clipped_fraction(crop, TEST_CLIPPED_FRACTION, scale_region=centre)
 

@@ -17,7 +17,7 @@ def saturated_crop(image: np.ndarray, size_px: int, rng: np.random.Generator,
     return image[top:top + size_px, left:left + size_px]
 
 
-def test_crop(image: np.ndarray, size_px: int, margin_px: int, context_px: int, rng: np.random.Generator
+def scored_crop(image: np.ndarray, size_px: int, margin_px: int, context_px: int, rng: np.random.Generator
               ) -> np.ndarray:
     """A (size + 2 margin)^2 crop of a fixed test scene: its centre size^2 - the region scored - holds one of the
     brightest 1.5 % of pixels (drawn as saturated_crop draws) and keeps ``context_px`` of the image on every

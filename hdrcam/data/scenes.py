@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.data.augment import undistorted_rows, white_balance_jitter
-from hdrcam.data.crops import rotate_flip, saturated_crop, test_crop
+from hdrcam.data.crops import rotate_flip, saturated_crop, scored_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
 from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE,
@@ -112,7 +112,7 @@ class SceneSource:
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
         """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %
-        above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.test_crop); each
+        above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.scored_crop); each
         named (night-NNN, or the file's stem - its name where two files share a stem). A photograph without
         light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
         mirrored to fill it, with a warning."""
@@ -122,7 +122,7 @@ class SceneSource:
             for index in range(count):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
                 scene = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
-                scenes.append((f"night-{index:03d}", _scaled(test_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
+                scenes.append((f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
                                                                        rng), TEST_CLIPPED_FRACTION, margin_px)))
         else:
             stems = [path.stem for path in self.folder.files]
@@ -132,7 +132,7 @@ class SceneSource:
                 if min(image.shape[:2]) < size_px:
                     warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
                                   "test crop: mirrored to fill it, and the mirrored copies are scored too")
-                crop = test_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
+                crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
                 name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
                 try:
                     scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
