@@ -5,8 +5,9 @@ subtracted: a dark frame would add its own read noise, and the annulus below rem
 hot pixels found in the darks and samples clipped in every frame get no weight; sources closer to another
 than their windows and PSFs allow are left out (a pitch too fine for the size is refused, naming the size it
 allows); each source's background is a plane fitted per channel to an annulus just outside its window; the
-PSF, the sources' positions and fluxes are fitted jointly on the Bayer samples (:mod:`hdrcam.calibrate.effective_psf`), so the
-green centroid lands on the centre pixel and all channels share that sub-pixel shift; the result is
+PSF, the sources' positions and fluxes are fitted jointly on the Bayer samples
+(:mod:`hdrcam.calibrate.effective_psf`), so the green centroid lands on the centre pixel and all channels share
+that sub-pixel shift; the result is
 cropped to a given size, or to the smallest size that holds a given energy fraction, and each channel is
 normalised to unit sum. A fit whose residuals stay well above the noise is warned about.
 """
@@ -119,42 +120,51 @@ def warn_negative_energy(fit: EffectivePsf) -> None:
                       stacklevel=2)
 
 
-def crowded(sources: list[tuple[int, int]], reach_px: int) -> set[tuple[int, int]]:
-    """The sources with another closer than ``reach_px`` (the larger of the row and column distances): a window
-    of half-width h around each and PSFs of radius r overlap when sources are less than h + r + 1 apart, the
-    neighbour's light then fitted as the source's own (a 72 px pinhole pitch with an 81 px PSF: L1 26-45 %)."""
-    if len(sources) < 2:
-        return set()
-    points = np.array(sources)
-    distance = np.abs(points[:, None, :] - points[None, :, :]).max(axis=-1)
-    np.fill_diagonal(distance, reach_px)
-    return {sources[index] for index in np.flatnonzero(distance.min(axis=1) < reach_px)}
+def crowded(sources: list[tuple[int, int]], peaks: list[tuple[int, int]], support_px: int, reach_px: int
+            ) -> dict[tuple[int, int], int]:
+    """The sources with a bright peak (of ``peaks``) beyond their own PSF's support (``support_px``: nearer, it is
+    the source's own, as a dual-peak DOE's 6 % peak 8 px out) but closer than ``reach_px`` (distances: the larger
+    of the row and column offsets), each with that distance: a window of half-width h around a source and a
+    neighbour's PSF of radius r overlap when the two are less than h + r + 1 apart, the neighbour's light then
+    fitted as the source's own (a 72 px pinhole pitch with an 81 px PSF: L1 26-45 %)."""
+    if not sources or not peaks:
+        return {}
+    distance = np.abs(np.array(sources)[:, None, :] - np.array(peaks)[None, :, :]).max(axis=-1)
+    distance = np.where(distance > support_px, distance, np.iinfo(distance.dtype).max)
+    nearest = distance.min(axis=1)
+    return {sources[index]: int(nearest[index]) for index in np.flatnonzero(nearest < reach_px)}
 
 
-def _crowding_advice(sources: list[tuple[int, int]], size_px: int) -> str:
-    """Why crowded sources were left out, with the largest --size their spacing allows."""
-    points = np.array(sources)
-    distance = np.abs(points[:, None, :] - points[None, :, :]).max(axis=-1)
-    np.fill_diagonal(distance, np.iinfo(distance.dtype).max)
-    spacing = int(np.median(distance.min(axis=1)))
-    largest = spacing - WINDOW_MARGIN_PX - 1 - (spacing - WINDOW_MARGIN_PX) % 2  # the largest odd size that fits
+def _crowding_advice(crowded_sources: dict[tuple[int, int], int], peaks: list[tuple[int, int]], size_px: int) -> str:
+    """Why crowded sources were left out, with the largest odd --size their spacing allows: an odd size s is free
+    of crowding at a spacing d when d >= (s // 2 + WINDOW_MARGIN_PX) + s // 2 + 1 = s + WINDOW_MARGIN_PX."""
+    spacing = int(np.median(list(crowded_sources.values())))
+    largest = spacing - WINDOW_MARGIN_PX
+    largest -= 1 - largest % 2  # odd
+    size_advice = f"--size {largest} at most, or a sparser target" if largest >= 3 else "a sparser target"
     return (f"closer to another than a {size_px} px PSF and its window allow (pinholes {spacing} px apart: "
-            f"--size {largest} at most, or a sparser target)")
+            f"{size_advice})")
 
 
 MISFIT_CHI2 = 2.0  # reduced chi2 of a good fit: 0.9-1.2 (PRNU of 1 %, vignetting, dust, colour across the plate)
+FAILED_FIT_CHI2 = 100.0  # beyond this the fit is no PSF at all: refused rather than written
 
 
-def warn_misfit(fit: EffectivePsf, crowded_count: int) -> None:
+def check_fit(fit: EffectivePsf, crowded_count: int) -> None:
     """Warn when the model leaves residuals well above the noise (reduced chi2 over MISFIT_CHI2): measured with
     frames that moved 0.1 px between exposures (chi2 6.7, L1 8-16 %) and pinholes whose neighbours' light falls
-    in their windows (chi2 13-38, L1 10-45 %), each without any other warning before."""
+    in their windows (chi2 13-38, L1 10-45 %), each without any other warning before. InputError beyond
+    FAILED_FIT_CHI2 (a dual-peak DOE's pinholes at --size 25: chi2 1683, 370 % of blue's energy negative)."""
+    crowding = f"; {crowded_count} crowded pinholes were left out" if crowded_count else ""
+    causes = ("frames that moved between exposures, pinholes whose neighbours' light reaches their window, a "
+              "resolved (too large) pinhole or a changing background")
+    if fit.reduced_chi2 > FAILED_FIT_CHI2:
+        raise InputError(f"the PSF fit failed: it leaves {fit.reduced_chi2:.0f} times the noise in the residuals "
+                         f"(reduced chi2{crowding}); {causes}? Check the bench and the bracket, or try another --size")
     if fit.reduced_chi2 > MISFIT_CHI2:
-        crowding = f"; {crowded_count} crowded pinholes were left out" if crowded_count else ""
         warnings.warn(f"the PSF model leaves {fit.reduced_chi2:.1f} times the noise in the residuals (reduced chi2 "
-                      f"over {MISFIT_CHI2:g}{crowding}): frames that moved between exposures, pinholes whose "
-                      "neighbours' light reaches their window, a resolved (too large) pinhole or a changing "
-                      "background put the PSF several % off - check the bench and the bracket", stacklevel=2)
+                      f"over {MISFIT_CHI2:g}{crowding}): {causes} put the PSF several % off - check the bench and "
+                      "the bracket", stacklevel=2)
 
 
 def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
@@ -176,7 +186,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     channels = channel_map(meta.cfa_pattern, height, width)
     half = size_px // 2 + WINDOW_MARGIN_PX
     found, edge, clipped, faint = {}, 0, 0, 0
-    for row, column in detect_sources(merge.rate, ~untrusted, size_px // 2 + 1):
+    for row, column in detect_sources(merge.rate, ~untrusted, size_px):
         window = cut_window(merge.rate, weight, channels, row, column, half)
         if window is None:
             edge += 1
@@ -186,12 +196,13 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
             faint += 1
         else:
             found[(row, column)] = window
-    crowded_sources = crowded(list(found), half + size_px // 2 + 1)  # among real sources, not noise peaks
+    peaks = detect_sources(merge.rate, ~untrusted, 3)  # every bright peak: a neighbour the detection above hid
+    crowded_sources = crowded(list(found), peaks, size_px // 2, half + size_px // 2 + 1)
     windows = [window for position, window in found.items() if position not in crowded_sources]
     rejected = edge + clipped + faint + len(crowded_sources)
     if not windows:
         reasons = [f"{count} {reason}" for count, reason in (
-            (len(crowded_sources), _crowding_advice(list(found), size_px) if crowded_sources else ""),
+            (len(crowded_sources), _crowding_advice(crowded_sources, peaks, size_px) if crowded_sources else ""),
             (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
             (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
         spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
@@ -202,7 +213,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     check_enough_samples(windows, size_px)
     fit = fit_effective_psf(windows, size_px)
     warn_negative_energy(fit)
-    warn_misfit(fit, len(crowded_sources))
+    check_fit(fit, len(crowded_sources))
     crop = size_px if energy_fraction is None else crop_size_for_energy(fit.psf, energy_fraction)
     start = size_px // 2 - crop // 2
     psf = fit.psf[:, start:start + crop, start:start + crop]

@@ -4,12 +4,13 @@ A bracket is a run of frames from one camera (for files that name none, one sens
 ``hdrcam.io.raw.sensor_fingerprint``) at one ISO, aperture and frame size, taken close together (no gap longer
 than ``max_gap_s`` plus twice the previous exposure: a long exposure is followed by an in-camera dark frame as
 long, Long Exposure NR, on by default on Sony bodies), with distinct exposure times; a repeated exposure starts
-the next bracket, after a pause clearly the longest since the frame it repeats, else at the repeat. Brackets
-shot alternately (e.g. at two ISOs) are separated by their settings. Every file of the folder is offered to
-LibRaw (no list of suffixes): one it does not open, or that fits no bracket, is reported with the reason - never
-silently dropped. A byte-identical copy of another RAW file (``frame-02 (1).dng`` beside ``frame-02.dng``) is
-named as a duplicate and left out, so that it neither splits a bracket nor stands for a second exposure. Hidden
-files and hdrcam's own JSON manifests are not candidates.
+the next bracket (a camera's own bracket sets, shot out of order as 0, -1, +1 EV and less than ``max_gap_s``
+apart, are told apart by a smaller ``max_gap_s``). Brackets shot alternately (e.g. at two ISOs) are separated by
+their settings. Every file of the folder is offered to LibRaw (no list of suffixes): one it does not open, or
+that fits no bracket, is reported with the reason - never silently dropped. A byte-identical copy of another RAW
+file (``frame-02 (1).dng`` beside ``frame-02.dng``) is named as a duplicate and left out, so that it neither
+splits a bracket nor stands for a second exposure. Hidden files and hdrcam's own JSON manifests are not
+candidates.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import dataclasses
 import os
 from pathlib import Path
 
-import numpy as np
 
 from hdrcam.capture.manifest import Bracket, BracketFrame, sha256_of
 from hdrcam.capture.notches import exposure_label
@@ -56,14 +56,10 @@ def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP
         group.sort(key=lambda f: (*_taken(f), f.path.name))
         current: list[RawMetadata] = []
         for frame in group:
-            repeated = next((index for index, other in enumerate(current) if _same_exposure(frame, other)), None)
-            if current and _too_late(current[-1], frame, max_gap_s):
+            if current and (_too_late(current[-1], frame, max_gap_s)
+                            or any(_same_exposure(frame, other) for other in current)):
                 _close(current, group, brackets, report, max_gap_s)
                 current = []
-            elif repeated is not None:
-                split = _widest_pause(current, frame, repeated + 1)
-                _close(current[:split], group, brackets, report, max_gap_s)
-                current = current[split:]
             current.append(frame)
         _close(current, group, brackets, report, max_gap_s)
     brackets.sort(key=lambda b: (*_taken(b[0]), b[0].path.name))
@@ -79,25 +75,6 @@ def _too_late(previous: RawMetadata, frame: RawMetadata, max_gap_s: float) -> bo
     if previous.timestamp is None or frame.timestamp is None:
         return False
     return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + BUSY_EXPOSURES * previous.exposure_s
-
-
-CLEAR_PAUSE_S = 2.0  # EXIF times are whole seconds: a pause this much longer than every other one is a break
-
-
-def _widest_pause(current: list[RawMetadata], frame: RawMetadata, first: int) -> int:
-    """Where the next bracket begins when ``frame`` repeats an exposure of ``current`` (the earliest index it may
-    begin at: ``first``): after a pause CLEAR_PAUSE_S longer than every other since ``first``, else at the
-    repeat (``frame`` itself). A camera's own bracket shoots its frames out of order (0, -1, +1 EV) and fast: two
-    such sets 5 s apart were split at the repeat, the second set's first frame joining the first set; a hand-set
-    bracket's pauses vary by a second or two, and split at its longest pause it lost a frame to the next."""
-    run = current + [frame]
-    pauses = [(run[index].timestamp - run[index - 1].timestamp).total_seconds()
-              if run[index].timestamp is not None and run[index - 1].timestamp is not None else 0.0
-              for index in range(first, len(run))]
-    widest = int(np.argmax(pauses))
-    others = pauses[:widest] + pauses[widest + 1:]
-    clear = not others or pauses[widest] >= max(others) + CLEAR_PAUSE_S
-    return first + widest if clear else len(current)
 
 
 def _same_exposure(a: RawMetadata, b: RawMetadata) -> bool:

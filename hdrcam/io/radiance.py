@@ -32,7 +32,7 @@ RADIANCE_MAGIC = b"#?"
 FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
 _RESOLUTION = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
 DECODED_BYTES_PER_PIXEL = 36  # OpenCV's float BGR image, its RGB copy and the corrected one (float32 each)
-LARGEST_CORRECTION = 1e30  # EXPOSURE and COLORCORR between its inverse and it: the pixels stay within float32
+LARGEST_CORRECTION = 1e30  # EXPOSURE and COLORCORR, each line and their product, between its inverse and it
 MAX_HEADER_BYTES = 1 << 16  # a header is a few lines; a file without an end to it within this is not Radiance
 
 
@@ -112,7 +112,13 @@ def _corrected(path: Path, values: np.ndarray, image_format: str, variables: lis
         else:
             divisor *= numbers
     if not np.array_equal(divisor, np.ones(3)):
-        values /= divisor.astype(np.float32)
+        corrected = values / divisor  # float64: no overflow on the way
+        if not (np.all(divisor <= LARGEST_CORRECTION) and np.all(divisor >= 1 / LARGEST_CORRECTION)
+                and float(corrected.max(initial=0.0)) <= np.finfo(np.float32).max):
+            raise InputError(f"{path}: Radiance EXPOSURE and COLORCORR lines multiply to "
+                             f"{', '.join(f'{value:.3g}' for value in divisor)}, which put its radiance beyond "
+                             "float32 (or below it); check the header")
+        values = corrected.astype(np.float32)
     matrix = to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES if image_format == FORMATS[1] else primaries)
     if matrix is not None:
         values = values @ matrix.T.astype(np.float32)

@@ -135,15 +135,20 @@ def test_a_sloping_background_is_taken_out_of_each_window_as_a_plane():
     assert ANNULUS_WIDTH_PX + half < 30
 
 
-def test_a_fit_that_leaves_residuals_well_above_the_noise_is_warned_about():
-    """Frames that moved 0.1 px between exposures gave L1 8-16 % (reduced chi2 6.7) without any warning."""
+def test_a_fit_that_leaves_residuals_well_above_the_noise_is_warned_about_or_refused():
+    """Frames that moved 0.1 px between exposures gave L1 8-16 % (reduced chi2 6.7) without any warning; a fit
+    that failed outright (chi2 1683) was written with two warnings."""
     from hdrcam.calibrate.effective_psf import EffectivePsf
-    from hdrcam.calibrate.psf_calibration import warn_misfit
+    from hdrcam.calibrate.psf_calibration import check_fit
+    from hdrcam.errors import InputError
 
     fit = EffectivePsf(np.ones((3, 3, 3)) / 9, np.zeros((1, 2)), np.ones((1, 3)), 6.7, 0.0, np.zeros(3))
     with pytest.warns(UserWarning, match=r"leaves 6.7 times the noise in the residuals \(reduced chi2 over 2\)"):
-        warn_misfit(fit, 0)
+        check_fit(fit, 0)
+    fit.reduced_chi2 = 1683.0
+    with pytest.raises(InputError, match=r"the PSF fit failed: it leaves 1683 times the noise"):
+        check_fit(fit, 0)
     fit.reduced_chi2 = 1.1
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        warn_misfit(fit, 0)
+        check_fit(fit, 0)

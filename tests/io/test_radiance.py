@@ -101,3 +101,11 @@ def test_truncated_pixel_data_are_refused(tmp_path):
     path.write_bytes(path.read_bytes()[:60])
     with pytest.raises(InputError, match="pixel data cannot be decoded"):
         read_hdr_image(path)
+
+
+def test_corrections_that_multiply_beyond_float32_are_refused_in_one_line(tmp_path):
+    """Each EXPOSURE line was checked alone, but the lines multiply: two of 1e-20 put inf in every pixel with
+    numpy's overflow warning on stderr."""
+    path = _with_header(tmp_path, _image(), b"#?RADIANCE\nEXPOSURE=1e-20\nEXPOSURE=1e-20\n", b"-Y 6 +X 9")
+    with pytest.raises(InputError, match=r"EXPOSURE and COLORCORR lines multiply to 1e-40, 1e-40, 1e-40"):
+        read_hdr_image(path)
