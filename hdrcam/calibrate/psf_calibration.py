@@ -212,8 +212,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
                          "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
     check_enough_samples(windows, size_px)
     fit = fit_effective_psf(windows, size_px)
+    check_fit(fit, len(crowded_sources))  # a failed fit is refused in one line, before any other warning
     warn_negative_energy(fit)
-    check_fit(fit, len(crowded_sources))
     crop = size_px if energy_fraction is None else crop_size_for_energy(fit.psf, energy_fraction)
     start = size_px // 2 - crop // 2
     psf = fit.psf[:, start:start + crop, start:start + crop]
