@@ -255,6 +255,10 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     if not np.array_equal(nominal_true, labelled):
         notes.append(f"{meta.make} labels read as the notches' true times (1/125 s is 2^-7 s): "
                      + ", ".join(f"{t:.6g}" for t in nominal_true) + " s")
+    elif len(frames) > 1:  # said, so a user of another make knows what set the scale (a nominal label is 2-4 % off)
+        owner = f"{meta.make.strip()}'s" if meta.make.strip() else "the files'"
+        notes.append(f"{owner} labels taken as written (exact times or the notches' nominal labels; only Sony's are "
+                     "known to be nominal): " + ", ".join(f"{t:.6g}" for t in labelled) + " s")
     return BayerMerge(rate, variance, usable_frames == 0, exposures, labelled, clip, clip_tile, notes,
                       usable_frames, noise, read_variance, to_relative)
 
