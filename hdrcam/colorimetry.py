@@ -56,23 +56,25 @@ def normalised_primary_matrix(chromaticities) -> np.ndarray:
     CIE XYZ's own primaries (1, 0), (0, 1), (0, 0) work. ValueError for a white point with y <= 0, values that
     are not finite, or primaries on one line."""
     xy = np.asarray(chromaticities, dtype=np.float64).reshape(4, 2)
-    white_x, white_y = xy[3]
+    white_y = xy[3, 1]
     if not np.all(np.isfinite(xy)) or white_y <= 0:
         raise ValueError(f"chromaticities {tuple(xy.ravel())}: the white point needs y > 0")
     primaries = np.column_stack([xy[:3, 0], xy[:3, 1], 1.0 - xy[:3].sum(axis=1)]).T  # columns: x, y, z
     if abs(np.linalg.det(primaries)) < 1e-12:
         raise ValueError(f"chromaticities {tuple(xy.ravel())}: the primaries lie on one line")
-    white = np.array([white_x / white_y, 1.0, (1.0 - white_x - white_y) / white_y])
+    white = _white_xyz(xy[3])
     return primaries * np.linalg.solve(primaries, white)[None, :]
 
 
 _BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
 
 
+def _white_xyz(xy) -> np.ndarray:
+    """XYZ at Y = 1 of a white point's chromaticity (x, y), y > 0."""
+    return np.array([xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]])
+
+
 def _bradford(source_white, target_white) -> np.ndarray:
     """XYZ under ``source_white`` -> XYZ under ``target_white`` (x, y each): the Bradford (von Kries) transform."""
-    def xyz(xy) -> np.ndarray:
-        return np.array([xy[0] / xy[1], 1.0, (1 - xy[0] - xy[1]) / xy[1]])
-
-    source, target = _BRADFORD @ xyz(source_white), _BRADFORD @ xyz(target_white)
+    source, target = _BRADFORD @ _white_xyz(source_white), _BRADFORD @ _white_xyz(target_white)
     return np.linalg.inv(_BRADFORD) @ np.diag(target / source) @ _BRADFORD

@@ -125,7 +125,7 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         return np.sum(list(pool.map(sums, row_strips)), axis=0)
 
     ratios, refining = list(labelled), list(range(pairs))
-    final = np.zeros((pairs, SUMS))  # each pair's sums at its last refinement
+    counts, methods = [0] * pairs, [""] * pairs  # each pair's pixels and method at its last refinement
     unestimated: dict[int, str] = {}  # pair -> why its labelled ratio is used
     for _ in range(REFINEMENTS):
         bounds = {k: bound_dn(ratios[k]) for k in refining}
@@ -136,8 +136,8 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         for k in in_band:
             totals[k] = below_band[k] + kept_totals[k]
         for k in list(refining):
-            final[k] = totals[k]
-            ratio, _, why_not = _ratio(totals[k])
+            counts[k] = int(totals[k, 0])
+            ratio, methods[k], why_not = _ratio(totals[k])
             if ratio is not None:
                 ratios[k] = ratio
                 continue
@@ -148,9 +148,9 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
         if k in unestimated:
             notes.append(f"frames {k}-{k + 1}: {unestimated[k]}; using the labelled ratio {labelled[k]:.4f}")
             continue
-        how = "" if _ratio(final[k])[1] == "slope" else \
+        how = "" if methods[k] == "slope" else \
             " (the frames' sums: too little contrast for a slope that cancels a black-level error)"
-        notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {int(final[k, 0])} pixels{how} (labels say "
+        notes.append(f"frames {k}-{k + 1}: ratio {ratios[k]:.4f} from {counts[k]} pixels{how} (labels say "
                      f"{labelled[k]:.4f})")
         stops = float(np.log2(ratios[k] / labelled[k]))
         if abs(stops) > IMPLAUSIBLE_STOPS:
@@ -230,10 +230,15 @@ def _sums(instrument: np.ndarray, shorter: np.ndarray, longer: np.ndarray, valid
                      cv2.sumElems(cv2.multiply(longer, weighted_shorter))[0]])
 
 
+def _third_frame(k: int, frames: int) -> int:
+    """The frame pair k draws on beside its own two: k+2, else k-1 (-1: none, a two-frame bracket)."""
+    return k + 2 if k + 2 < frames else k - 1
+
+
 def _instrument(signals: list[np.ndarray], predicted: np.ndarray, k: int) -> np.ndarray:
-    """Pair k's instrument on a strip: the third frame's signal (k+2, else k-1), else ``predicted`` (the shorter
-    frame's neighbour mean)."""
-    other = k + 2 if k + 2 < len(signals) else k - 1
+    """Pair k's instrument on a strip: the third frame's signal, else ``predicted`` (the shorter frame's
+    neighbour mean)."""
+    other = _third_frame(k, len(signals))
     return signals[other] if other >= 0 else predicted
 
 
@@ -245,7 +250,7 @@ def _selected(signals: list[np.ndarray], clipped: list[np.ndarray], predicted: n
     np.logical_not(selected, out=selected)
     if floor_dn > -np.inf:
         selected &= predicted >= floor_dn
-    other = k + 2 if k + 2 < len(signals) else k - 1
+    other = _third_frame(k, len(signals))
     if other >= 0:
         selected &= (signals[other] > SIGNAL_FLOOR * noise_floor_dn) | clipped[other]
     return selected
