@@ -12,7 +12,7 @@ from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
 from hdrcam.io.radiance import is_radiance_file, read_radiance
-from hdrcam.io.tiff_image import read_tiff_samples
+from hdrcam.io.tiff_image import read_tiff_rgb
 
 HDR_SUFFIXES = (".exr", ".hdr")
 
@@ -30,12 +30,9 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
         image = exr.rgb() if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels) \
             else np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
     elif path.suffix.lower() in (".tif", ".tiff"):
-        image = read_tiff_samples(path)
-        if image.ndim != 3 or image.shape[2] < 3:
-            raise InputError(f"{path}: {'one sample' if image.ndim == 2 else f'{image.shape[2]} samples'} per pixel: "
-                             "not an RGB image")
+        image = read_tiff_rgb(path)
         _refuse_display_image(path, image)
-        image = image[..., :3].astype(np.float32)
+        image = image.astype(np.float32)
     elif is_radiance_file(path):
         image = read_radiance(path)
     else:

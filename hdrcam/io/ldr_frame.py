@@ -28,7 +28,7 @@ from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
-from hdrcam.io.tiff_image import read_tiff_samples
+from hdrcam.io.tiff_image import read_tiff_rgb
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
@@ -82,16 +82,13 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
 
 def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
     """A TIFF's or PNG's H x W x 3 samples in R, G, B order and their stored type (extra samples dropped)."""
-    if suffix == ".png":
-        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
-            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is not None and image.ndim == 3 and image.shape[2] >= 3:
-            image = cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB)
-    else:
-        image = read_tiff_samples(path)
+    if suffix != ".png":
+        return read_tiff_rgb(path)
+    with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 3 or image.shape[2] < 3:
         raise InputError(f"{path}: cannot read as an RGB image")
-    return image[..., :3]
+    return cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB)
 
 
 PLATEAU_MIN_PIXELS = 16  # pixels sharing the brightest value, below white, that look like clipping

@@ -49,6 +49,16 @@ def read_tiff_samples(path: Path) -> np.ndarray:
     return samples
 
 
+def read_tiff_rgb(path: Path) -> np.ndarray:
+    """A TIFF's H x W x 3 samples in R, G, B order and their stored type (extra samples such as alpha dropped);
+    InputError naming the file when it holds fewer than three samples per pixel (grey)."""
+    samples = read_tiff_samples(path)
+    if samples.ndim != 3 or samples.shape[2] < 3:
+        raise InputError(f"{path}: {'one sample' if samples.ndim == 2 else f'{samples.shape[2]} samples'} per pixel: "
+                         "not an RGB image")
+    return samples[..., :3]
+
+
 @contextlib.contextmanager
 def _tifffile_quiet():
     """tifffile logs what it finds wrong with a file as warnings on stderr; the InputError says it in one line."""
