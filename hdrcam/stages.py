@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hdrcam.profiles import DEFAULT_PROFILE
+from hdrcam.train.run_options import recorded_data, recorded_file
 
 if TYPE_CHECKING:
     from hdrcam.calibrate.psf_calibration import PsfCalibration
@@ -202,12 +203,12 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
         raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
     if init is not None and not Path(init).is_file():
         raise InputError(f"--init {init} does not exist")
-    given = _given(preset=preset, profile=_absolute_if_file(profile), data=_absolute_data(data), steps=steps,
+    given = _given(preset=preset, profile=recorded_file(profile), data=recorded_data(data), steps=steps,
                    batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                    checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                   init_checkpoint=_absolute_if_file(init))
+                   init_checkpoint=recorded_file(init))
     if psf:
-        given.update(psf=_absolute_if_file(psf), doe=None)
+        given.update(psf=recorded_file(psf), doe=None)
     elif doe:
         given.update(doe=doe, psf=None)
     return _train(out, {"steps": 1000}, given, resume=resume, vgg_weights=vgg_weights, random_vgg=random_vgg,
@@ -259,9 +260,9 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
                "init_checkpoint": str(start), "learning_rate": 2e-4}
-    options = _given(data=_absolute_data(data), steps=steps, batch=batch, crop_px=crop_px,
+    options = _given(data=recorded_data(data), steps=steps, batch=batch, crop_px=crop_px,
                      learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
-                     channels_last=channels_last, psf=_absolute_if_file(psf))
+                     channels_last=channels_last, psf=recorded_file(psf))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
                "data_workers": data_workers}
     last = _train(out, new_run, {**options, **_given(init_checkpoint=str(start) if checkpoint else None)},
@@ -376,21 +377,6 @@ def _forget_unsaved_run(folder: Path) -> None:
             (folder / name).unlink(missing_ok=True)
     if dist.is_available() and dist.is_initialized():
         dist.barrier()
-
-
-def _absolute_if_file(value: str | Path | None) -> str | None:
-    """A file option as the run records it: an existing file's absolute path (a resume from another folder finds
-    it), else the value as given (a name such as dirac, or None)."""
-    if value is None:
-        return None
-    return str(Path(value).resolve()) if Path(value).is_file() else str(value)
-
-
-def _absolute_data(data: str | None) -> str | None:
-    """``--data`` as a run records it: its folders by absolute path (hdrcam.data.scenes.absolute_mixture)."""
-    from hdrcam.data.scenes import absolute_mixture
-
-    return None if data is None else absolute_mixture(data)
 
 
 def _given(**fields) -> dict:

@@ -52,6 +52,7 @@ from hdrcam.recon.vgg import vgg_for_preset
 from hdrcam.train.batches import BatchStream
 from hdrcam.train.checkpoint import read_checkpoint, recorded_checkpoint, save_checkpoint
 from hdrcam.train.choices import FIXED_PSFS
+from hdrcam.train.run_options import moved_file, same_file
 from hdrcam.train.config import TrainConfig
 from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
 
@@ -169,7 +170,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     noise = torch.Generator(device=device).manual_seed(config.seed * 1000 + rank)
     start = 0
     if saved is not None:
-        if model.capture.simulator is None and not same_psf(model.capture.fixed.detach().cpu(), saved["psf"]):
+        if model.capture.simulator is None and not _same_psf(model.capture.fixed.detach().cpu(), saved["psf"]):
             raise InputError(f"--psf {config.psf}: not the PSF {out.name} trained behind so far (the file changed "
                              "since); resume needs the same PSF")
         model.network.load_state_dict(saved["network"], strict=False)
@@ -255,14 +256,14 @@ def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
     (``psf_file_may_replace``: a run that saved no step) whatever it holds."""
     wanted, saved = config.as_dict(), TrainConfig.from_dict(saved).as_dict()
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
-        if key in FILE_OPTIONS and _same_file(saved.get(key), wanted.get(key)):
+        if key in FILE_OPTIONS and same_file(saved.get(key), wanted.get(key)):
             continue
         if key == "data" and absolute_mixture(saved[key]) == absolute_mixture(wanted[key]):
             continue  # the same folders, spelled from another folder
-        if key == "psf" and _moved_psf_file(saved.get(key), wanted.get(key)):
+        if key == "psf" and moved_file(saved.get(key), wanted.get(key), FIXED_PSFS):
             if saved_psf is not None:
                 given = torch.from_numpy(fixed_psf(wanted[key], load_profile(wanted["profile"])))
-                if not same_psf(given, saved_psf):
+                if not _same_psf(given, saved_psf):
                     raise InputError(f"--psf {wanted[key]}: not the PSF {checkpoint_path.parent.name} trained behind "
                                      "so far (its own file is gone); resume needs the same PSF")
                 continue
@@ -273,27 +274,9 @@ def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
                              f"for {wanted.get(key)!r}; resume with the run's own options, or choose another --out")
 
 
-def same_psf(psf: torch.Tensor, saved_psf: torch.Tensor) -> bool:
+def _same_psf(psf: torch.Tensor, saved_psf: torch.Tensor) -> bool:
     """Whether a (3, S, S) PSF is the one a run saved: same size, values within float32 rounding."""
     return psf.shape == saved_psf.shape and torch.allclose(psf.float(), saved_psf.float(), rtol=1e-5, atol=1e-8)
-
-
-def _moved_psf_file(saved: str | None, wanted: str | None) -> bool:
-    """Whether a run's PSF file is gone from where it was and another PSF file is given in its place."""
-    files = [psf for psf in (saved, wanted) if psf is not None and psf not in FIXED_PSFS]
-    return len(files) == 2 and not Path(saved).is_file() and Path(wanted).is_file()
-
-
-def _same_file(saved: str | None, wanted: str | None) -> bool:
-    """Whether two spellings of a file option name the same file: equal, resolving to one path, or two files of
-    identical bytes (a copy moved with its run)."""
-    if saved == wanted:
-        return True
-    if saved is None or wanted is None or not Path(wanted).is_file():
-        return False
-    if Path(saved).is_file():
-        return Path(saved).resolve() == Path(wanted).resolve() or Path(saved).read_bytes() == Path(wanted).read_bytes()
-    return False
 
 
 def _maybe_distributed(model: nn.Module, world: int, device: torch.device) -> nn.Module:
