@@ -42,7 +42,8 @@ from hdrcam.capture.notches import ISO_AUTO
 from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
                                       SONY_RAW_FORMAT, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, ClassRequest,
-                                      ContainerType, DataType, Event, Operation, Property, Response)
+                                      STARTUP_WAIT_MODELS, STARTUP_WAIT_S, ContainerType, DataType, Event, Operation,
+                                      Property, Response)
 from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
                                          PropertyDescriptor, pack_sony_properties)
@@ -119,6 +120,10 @@ class Faults:
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
     lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
+    model: str = "ILCE-7"  # DeviceInfo's model; one of STARTUP_WAIT_MODELS ignores full presses made within
+    # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
+    session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
+    # body still holds for an earlier host; library.c camera_init tries the next ids)
 
 
 class _InPipe:
@@ -165,6 +170,8 @@ class EmulatedSonyA7:
         self.latencies = latencies or Latencies()
         self.shots: list[dict] = []  # per full press: {"focused": bool, "exposure_s": float}
         self.premature_requests = 0  # GetObjectInfo/GetObject before 0xD215 announced the image
+        self.opened_at: float | None = None  # when OpenSession last succeeded
+        self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
         self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
@@ -319,7 +326,10 @@ class EmulatedSonyA7:
     def _op_1002(self, request, payload):  # OpenSession
         if self.session_open:
             return Response.SESSION_ALREADY_OPEN
+        if request.params and request.params[0] <= self.faults.session_ids_in_use:
+            return Response.INVALID_TRANSACTION_ID
         self.session_open = True
+        self.opened_at = self.clock.monotonic()
         return Response.OK
 
     def _op_1003(self, request, payload):  # CloseSession
@@ -329,7 +339,7 @@ class EmulatedSonyA7:
     def _op_1001(self, request, payload):  # GetDeviceInfo
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
                           tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
-                          (SONY_RAW_FORMAT,), "Sony Corporation", "ILCE-7", "3.20", f"{self.camera.seed:08d}")
+                          (SONY_RAW_FORMAT,), "Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
         return info.pack(), Response.OK
 
     def _op_9201(self, request, payload):  # SDIOConnect phases 1, 2, 3
@@ -378,6 +388,9 @@ class EmulatedSonyA7:
             state = struct.unpack("<H", payload)[0]
             if code == Property.SONY_HALF_PRESS:
                 self._half_pressed_at = self.clock.monotonic() if state == 2 else None
+            if code == Property.SONY_FULL_PRESS and state == 2 and self._starting_up():
+                self.ignored_presses += 1
+                return Response.OK  # not started up: the press does nothing (and its release neither)
             if code == Property.SONY_FULL_PRESS and state == 2 and self._buttons[code] != 2:
                 if self.faults.malformed_event:
                     self.faults.malformed_event = False
@@ -390,6 +403,10 @@ class EmulatedSonyA7:
             self._buttons[code] = state
             return Response.OK
         return Response.DEVICE_PROP_NOT_SUPPORTED
+
+    def _starting_up(self) -> bool:
+        return self.faults.model in STARTUP_WAIT_MODELS and self.opened_at is not None and \
+            self.clock.monotonic() - self.opened_at < STARTUP_WAIT_S
 
     def _image_ready(self) -> bool:
         self._advance()

@@ -47,7 +47,8 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VE
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_ISO_NR_SHIFT, SONY_MANUFACTURER,
                                       SONY_PENDING_IMAGE_FLAG, SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2,
                                       SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
-                                      SONY_VENDOR_EXTENSION_ID, Operation, Property, Response)
+                                      SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Operation,
+                                      Property, Response)
 from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
@@ -158,6 +159,8 @@ class SonyA7Camera:
         self.clock = clock or Clock()
         self.cover_lens = cover_lens or TerminalLensCover()
         self.model = "Sony camera"
+        self.model_code = ""  # DeviceInfo's model alone, e.g. ILCE-7RM4
+        self._started_at: float | None = None  # when the session opened (libgphoto2 counts from camera_init)
         self.session: PtpSession | None = None
         self.properties: dict[int, PropertyDescriptor] = {}
         self._list_cut: str | None = None  # why the last 0x9209 answer's list ended early, if it did
@@ -184,6 +187,7 @@ class SonyA7Camera:
     def _handshake(self) -> None:
         session = self.session
         session.open(1)
+        self._started_at = self.clock.monotonic()
         info = session.device_info()
         sony_over_mtp_id = info.vendor_extension_id == MTP_VENDOR_EXTENSION_ID and \
             info.manufacturer == SONY_MANUFACTURER  # libgphoto2 takes these for Sony's extensions (PTP/IP mode)
@@ -192,6 +196,7 @@ class SonyA7Camera:
                               f"extension 0x{info.vendor_extension_id:X}): set USB Connection to 'PC Remote' in "
                               "the camera's menu")
         self.model = f"{info.manufacturer} {info.model}".strip()
+        self.model_code = info.model.strip()
         self.firmware = info.device_version
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
         session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
@@ -337,6 +342,7 @@ class SonyA7Camera:
     def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:
         self.cover_lens(dark)
         settings = self.settings()
+        self._wait_for_startup()
         self._drain_stale_events()
         before_release = self._drain_pending_image()
         with self._pressed(Property.SONY_HALF_PRESS):
@@ -351,6 +357,15 @@ class SonyA7Camera:
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
+
+    def _wait_for_startup(self) -> None:
+        """A body of STARTUP_WAIT_MODELS ignores a press in its first 2.5 s after the session opened: wait that out,
+        reading events and 0x9209 as libgphoto2 does (other bodies, and later shots, do not wait)."""
+        if self.model_code not in STARTUP_WAIT_MODELS or self._started_at is None:
+            return
+        while self.clock.monotonic() - self._started_at < STARTUP_WAIT_S:
+            self._pause_for_events()
+            self.refresh()
 
     def _download_raw(self, timeout_s: float, flag_alone_is_ready: bool):
         """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped and the
@@ -421,9 +436,14 @@ class SonyA7Camera:
                          if pending == SONY_PENDING_IMAGE_FLAG else "")
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
                                        f"release{stuck}")
-            if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
-                    and self.session.transport.interrupt_in is None:
-                self.clock.sleep(STEP_POLL_INTERVAL_S)
+            self._pause_for_events()
+
+    def _pause_for_events(self) -> None:
+        """One poll interval between property reads: spent waiting on the interrupt pipe, which an event ends
+        early (a body without one: asleep)."""
+        if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
+                and self.session.transport.interrupt_in is None:
+            self.clock.sleep(STEP_POLL_INTERVAL_S)
 
     def _drain_stale_events(self) -> None:
         """Read and drop the events queued since the last shot (an old ObjectAdded says nothing of this one)."""

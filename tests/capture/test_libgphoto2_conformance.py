@@ -9,7 +9,7 @@ import struct
 import pytest
 
 from hdrcam.capture.camera import CameraError
-from hdrcam.capture.ptp.codes import DataType, Operation, Property
+from hdrcam.capture.ptp.codes import STARTUP_WAIT_S, DataType, Operation, Property
 from hdrcam.capture.ptp.container import data, response
 from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
 from hdrcam.capture.ptp.transport import UsbTransport
@@ -259,3 +259,51 @@ def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
         body.bulk_in, body._advance = bulk_in, delayed_advance
         camera.capture(tmp_path, "f1")
     assert body.premature_requests == 0 and body.downloads == 4
+
+
+def test_a_body_that_needs_its_startup_time_gets_it_before_the_first_press(tmp_path):
+    """library.c camera_sony_capture: the ILCE-7RM4 (and ZV-E10, ZV-1, RX100 VII, RX0 II, A7C) ignores a press in
+    its first 2.5 s; libgphoto2 waits that out. Pressing at once lost the shot and then waited 35 s for it."""
+    camera, body = emulated(model="ILCE-7RM4")
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+        assert body.clock.monotonic() - body.opened_at >= STARTUP_WAIT_S
+    assert body.ignored_presses == 0 and len(body.shots) == 1 and frame.path.is_file()
+
+
+def test_a_body_without_a_startup_time_is_pressed_at_once(tmp_path):
+    """Only the models libgphoto2 names wait: an ILCE-7 shoots well inside 2.5 s of the session opening."""
+    camera, body = emulated()
+    with camera:
+        opened = body.opened_at
+        camera.capture(tmp_path, "f")
+        assert body.shots and body.clock.monotonic() - opened < STARTUP_WAIT_S
+
+
+def test_open_session_tries_the_next_ids_when_the_body_still_holds_one(tmp_path):
+    """library.c camera_init: OpenSession answered InvalidTransactionID is asked again with session ids 2, 3, ...
+    (up to 10), then after a device reset; the run ended at the first refusal."""
+    camera, body = emulated(session_ids_in_use=2)
+    with camera:
+        assert camera.session.session_id == 3
+        assert any("trying session id 3" in line for line in camera.session.log)
+        camera.capture(tmp_path, "f")
+    assert len(body.shots) == 1
+
+
+def test_a_body_that_refuses_every_session_id_is_an_error_after_a_reset():
+    camera, body = emulated(session_ids_in_use=99)
+    with pytest.raises(CameraError, match="INVALID_TRANSACTION_ID"):
+        with camera:
+            pass
+    assert body.session_open is False
+
+
+@pytest.mark.parametrize("value, name", [(0x8004, "AF-C"), (0x8005, "AF-A"), (0x8006, "DMF"), (2, "AF-S"),
+                                         (1, "MF")])
+def test_focus_modes_are_named_as_libgphoto2_names_them(value, name):
+    """config.c focusmodes[]: Sony's 0x8005 is AF-A and 0x8006 DMF (hdrcam named them DMF and AF-D, so a body on
+    AF-A was warned about and recorded as DMF)."""
+    from hdrcam.capture.ptp.codes import FOCUS_MODE_NAMES
+
+    assert FOCUS_MODE_NAMES[value] == name

@@ -56,7 +56,7 @@ class Event(IntEnum):
 class Property(IntEnum):
     IMAGE_QUALITY = 0x5004  # Sony: bit 0x10 set = RAW is recorded (0x10 RAW, 0x13/0x14 RAW+JPEG; 0x02-0x04 JPEG)
     F_NUMBER = 0x5007  # u16, f-number x 100
-    FOCUS_MODE = 0x500A  # 1 = manual (MF); 2 = AF-S, 0x8004 = AF-C, 0x8005 = DMF (libgphoto2)
+    FOCUS_MODE = 0x500A  # 1 = manual (MF); 2 = AF-S, 0x8004 = AF-C, 0x8005 = AF-A, 0x8006 = DMF (libgphoto2)
     EXPOSURE_PROGRAM_MODE = 0x500E  # 1 = M
     DRIVE_MODE = 0x5013  # 1 = single shot
     EXPOSURE_COMPENSATION = 0x5010  # i16, EV x 1000
@@ -113,7 +113,13 @@ CANCEL_EVENT_CODE = 0x4001  # the event code carried by a cancel request
 PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
 
 
-FOCUS_MODE_NAMES = {1: "MF", 2: "AF-S", 3: "AF-A", 0x8004: "AF-C", 0x8005: "DMF", 0x8006: "AF-D"}
+# library.c camera_sony_capture: these bodies "need around 3 seconds startup time to be able to capture"; libgphoto2
+# holds the first press until 2.5 s after camera_init, reading events and 0x9209 meanwhile
+STARTUP_WAIT_MODELS = ("ZV-E10", "ZV-1", "DSC-RX100M7", "ILCE-7RM4", "ILCE-7RM4A", "DSC-RX0M2", "ILCE-7C")
+STARTUP_WAIT_S = 2.5
+
+FOCUS_MODE_NAMES = {  # libgphoto2's config.c focusmodes[]: the PTP values, then PTP_VENDOR_SONY's
+    1: "MF", 2: "AF-S", 3: "automatic macro", 0x8004: "AF-C", 0x8005: "AF-A", 0x8006: "DMF"}
 SINGLE_SHOT_DRIVE = 1  # 0x5013's low 16 bits: one frame per press (newer bodies add high bits: 0x00010002 continuous)
 DRIVE_MODE_NAMES = {  # libgphoto2's config.c capture_mode table for Sony (low 16 bits)
     1: "single", 2: "continuous", 0x8012: "continuous low speed", 0x8004: "self-timer 10 s",

@@ -11,7 +11,9 @@ not repeated blindly (a second notch step or button press would do something els
 stopped by anything else mid-flight (Ctrl-C or SIGTERM during a download, a malformed container) is cancelled
 too, so the camera is not left streaming a data phase into the next session. OpenSession that meets bytes of
 no container, or none in time (what a run killed mid-download leaves queued), resets the device (class request
-0x66), clears the pipes' halts and opens once more.
+0x66), clears the pipes' halts and opens once more. OpenSession answered InvalidTransactionID (a body still
+holding that session id) is asked again with the next session ids, up to SESSION_IDS_TRIED of them, then once
+more with the first after a device reset - libgphoto2's camera_init.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ READ_ONLY_OPERATIONS = {Operation.GET_DEVICE_INFO, Operation.GET_OBJECT_INFO, Op
                         Operation.GET_DEVICE_PROP_DESC, Operation.GET_DEVICE_PROP_VALUE,
                         Operation.SONY_GET_ALL_DEVICE_PROP_DATA, Operation.SONY_GET_SDIO_EXT_DEVICE_INFO}
 TRANSIENT_RETRIES = 2  # timeouts and stalls, per transaction
+SESSION_IDS_TRIED = 10  # library.c camera_init: OpenSession answered InvalidTransactionID tries ids 1, 2, ... 10
 STALE_CONTAINERS_MAX = 8  # late containers of earlier transactions dropped while waiting for this one's
 STATUS_WAIT_S = 5.0  # for the device to report OK after a cancel or a cleared stall
 
@@ -64,6 +67,7 @@ class PtpSession:
         self.clock = clock or Clock()
         self.timeout_s, self.busy_retries, self.busy_backoff_s = timeout_s, busy_retries, busy_backoff_s
         self._next_transaction_id = 0
+        self.session_id: int | None = None  # the one the body accepted
         self.is_open = False
         self.log: list[str] = []  # one line per retry, cancel or reset, for the capture manifest
 
@@ -181,18 +185,43 @@ class PtpSession:
     def open(self, session_id: int = 1) -> None:
         try:
             try:
-                self.transact(Operation.OPEN_SESSION, session_id)
+                self._open_some_session(session_id)
             except (ContainerError, ProtocolError, TransportTimeout) as error:  # another run's data still queued
                 self.log.append(f"OpenSession met {error}; reset the device")
-                self.transport.reset()
-                self.transport.clear_halts()
-                self._wait_for_idle("a device reset")
-                self.transact(Operation.OPEN_SESSION, session_id)
+                self._reset_device()
+                self._open_some_session(session_id)
                 self.log.append("OpenSession after the reset: opened")
+            except ResponseError as error:
+                if error.response_code != Response.INVALID_TRANSACTION_ID:
+                    raise
+                self.log.append(f"OpenSession refused session ids {session_id} to "
+                                f"{session_id + SESSION_IDS_TRIED - 1}; reset the device")
+                self._reset_device()
+                self.transact(Operation.OPEN_SESSION, session_id)
         except ResponseError as error:
             if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
                 raise
         self.is_open = True
+
+    def _open_some_session(self, first_id: int) -> None:
+        """OpenSession with ``first_id``, then the next ids while the body answers InvalidTransactionID."""
+        for session_id in range(first_id, first_id + SESSION_IDS_TRIED):
+            try:
+                self.transact(Operation.OPEN_SESSION, session_id)
+            except ResponseError as error:
+                if error.response_code != Response.INVALID_TRANSACTION_ID or \
+                        session_id == first_id + SESSION_IDS_TRIED - 1:
+                    raise
+                self.log.append(f"OpenSession({session_id}) answered {codes.name(error.response_code)}; trying "
+                                f"session id {session_id + 1}")
+                continue
+            self.session_id = session_id
+            return
+
+    def _reset_device(self) -> None:
+        self.transport.reset()
+        self.transport.clear_halts()
+        self._wait_for_idle("a device reset")
 
     def close(self) -> None:
         if self.is_open:
