@@ -67,7 +67,7 @@ class PtpSession:
         self.clock = clock or Clock()
         self.timeout_s, self.busy_retries, self.busy_backoff_s = timeout_s, busy_retries, busy_backoff_s
         self._next_transaction_id = 0
-        self.session_id: int | None = None  # the one the body accepted
+        self.session_id: int | None = None  # the one the body accepted (None: one a previous run left open)
         self.is_open = False
         self.log: list[str] = []  # one line per retry, cancel or reset, for the capture manifest
 
@@ -198,6 +198,7 @@ class PtpSession:
                                 f"{session_id + SESSION_IDS_TRIED - 1}; reset the device")
                 self._reset_device()
                 self.transact(Operation.OPEN_SESSION, session_id)
+                self.session_id = session_id
         except ResponseError as error:
             if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
                 raise
