@@ -8,9 +8,12 @@
   The frame stays in the sensor's orientation, as the PSF; ``read_ldr_frame_and_orientation`` also gives the
   file's EXIF Orientation code, for previews.
 - EXR: linear RGB taken as is (1.0 = white).
+- Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance).
 - 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
-  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files and JPEGs are refused (gamma-encoded,
-  not linear). A file that starts like an EXR is read as one whatever its name.
+  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs and PNGs whose colour chunks
+  declare a non-linear transfer (sRGB, a gAMA other than 1) are refused (gamma-encoded, not linear); a 16-bit
+  TIFF's ICC profile is not read. A file that starts like an EXR, a Radiance file or a JPEG is taken as one
+  whatever its name.
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
 """
 
@@ -26,12 +29,16 @@ from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
+from hdrcam.io.png import declared_nonlinear_encoding
+from hdrcam.io.radiance import is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 from hdrcam.io.tiff_image import read_tiff_rgb
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
+RADIANCE_SUFFIXES = (".hdr", ".pic")
+JPEG_MAGIC = b"\xff\xd8\xff"
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
@@ -53,7 +60,9 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     if suffix == ".exr" or is_exr_file(path):
         image = read_exr(path)
         rgb, orientation = image.rgb(), exr_orientation(image.attributes)
-    elif suffix in GAMMA_SUFFIXES:
+    elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
+        rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)
+    elif suffix in GAMMA_SUFFIXES or _starts_with(path, JPEG_MAGIC):
         raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
                          "16-bit TIFF/PNG")
     elif suffix in IMAGE_SUFFIXES:
@@ -80,10 +89,19 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
 
 
+def _starts_with(path: Path, magic: bytes) -> bool:
+    with open(path, "rb") as handle:
+        return handle.read(len(magic)) == magic
+
+
 def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
     """A TIFF's or PNG's H x W x 3 samples in R, G, B order and their stored type (extra samples dropped)."""
     if suffix != ".png":
         return read_tiff_rgb(path)
+    encoding = declared_nonlinear_encoding(path)
+    if encoding:
+        raise InputError(f"{path}: the PNG declares {encoding}: its values are gamma-encoded, not linear; give a "
+                         "linear 16-bit TIFF/PNG, an EXR or the RAW file")
     with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 3 or image.shape[2] < 3:

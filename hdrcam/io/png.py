@@ -1,7 +1,9 @@
-"""PNG output for previews and fabrication masks (8 or 16 bit, grey or RGB), written atomically."""
+"""PNG output for previews and fabrication masks (8 or 16 bit, grey or RGB), written atomically; the transfer
+curve a PNG input declares in its colour chunks."""
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
@@ -26,3 +28,32 @@ def encoded_png(image: np.ndarray, path: Path | str = "image") -> bytes:
     if not ok:
         raise ValueError(f"could not encode {path} as PNG")
     return encoded.tobytes()
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_LINEAR_GAMMA = 100_000  # gAMA stores 100000 / the encoding exponent: 100000 is linear
+PNG_CICP_LINEAR = 8  # cICP transfer characteristics (ITU-T H.273): 8 is linear
+
+
+def declared_nonlinear_encoding(path: Path) -> str | None:
+    """What a PNG's colour chunks (those before its image data) say of a non-linear encoding - an sRGB chunk, a
+    gAMA other than 1.0, a cICP transfer other than linear - or None (no such chunk, a linear one, not a PNG).
+    16-bit PNGs from photo editors and RAW converters carry these."""
+    with open(path, "rb") as file:
+        if file.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+            return None
+        while len(header := file.read(8)) == 8:
+            length, kind = struct.unpack(">I4s", header)
+            if kind in (b"IDAT", b"IEND"):
+                return None
+            body = file.read(length)
+            file.seek(4, 1)  # the chunk's CRC
+            if kind == b"sRGB":
+                return "an sRGB chunk"
+            if kind == b"gAMA" and len(body) == 4:
+                value = struct.unpack(">I", body)[0]
+                if value and abs(value - PNG_LINEAR_GAMMA) > PNG_LINEAR_GAMMA // 100:
+                    return f"gAMA {value / PNG_LINEAR_GAMMA:.5g} (encoding exponent {PNG_LINEAR_GAMMA / value:.3g})"
+            if kind == b"cICP" and len(body) >= 2 and body[1] != PNG_CICP_LINEAR:
+                return f"cICP transfer {body[1]}"
+    return None

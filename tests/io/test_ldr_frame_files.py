@@ -110,3 +110,56 @@ def test_lzw_and_half_float_tiffs_read_and_damaged_or_cmyk_ones_are_refused_in_o
             with pytest.raises(InputError, match=f"{name}: {message}"):
                 reader(tmp_path / name)
     assert capfd.readouterr().err == ""
+
+
+def _png_chunk(kind: bytes, body: bytes) -> bytes:
+    import struct
+    import zlib
+
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+
+def _png16_with_chunks(path, chunks: list[bytes]):
+    """A 16-bit RGB PNG with ``chunks`` after its IHDR (where photo editors put sRGB and gAMA)."""
+    image = (np.linspace(0, 65535, 48 * 64 * 3) % 65536).astype(np.uint16).reshape(48, 64, 3)
+    data = cv2.imencode(".png", image)[1].tobytes()
+    path.write_bytes(data[:33] + b"".join(chunks) + data[33:])  # 8-byte signature + 25-byte IHDR chunk
+    return path
+
+
+@pytest.mark.parametrize("chunks, said", [
+    ([(b"sRGB", b"\x00")], "an sRGB chunk"),
+    ([(b"gAMA", (45455).to_bytes(4, "big"))], "gAMA 0.45455"),
+    ([(b"cICP", bytes([1, 13, 0, 1]))], "cICP transfer 13"),
+])
+def test_a_png_that_declares_itself_gamma_encoded_is_refused(tmp_path, chunks, said):
+    """A 16-bit PNG from a photo editor (sRGB or gAMA 1/2.2 chunk) was read as linear with no word: a frame 2.6 x
+    too bright in the mean, more pixels counted as clipped."""
+    path = _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(kind, body) for kind, body in chunks])
+    with pytest.raises(InputError, match=f"frame.png: the PNG declares {said}.*gamma-encoded"):
+        read_ldr_frame(path)
+
+
+@pytest.mark.parametrize("chunks", [[], [(b"gAMA", (100000).to_bytes(4, "big"))], [(b"cICP", bytes([1, 8, 0, 1]))]])
+def test_a_png_without_or_with_a_linear_transfer_chunk_is_read(tmp_path, chunks):
+    path = _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(kind, body) for kind, body in chunks])
+    assert read_ldr_frame(path).shape == (48, 64, 3)
+
+
+def test_radiance_frames_read_as_linear_and_an_hdr_photograph_is_refused_as_one(tmp_path):
+    """A Radiance file given to reconstruct got LibRaw's 'not RAW' line; an in-range one is a frame like an EXR."""
+    frame = np.full((16, 16, 3), 0.25, np.float32)
+    cv2.imwrite(str(tmp_path / "frame.hdr"), frame)
+    np.testing.assert_allclose(read_ldr_frame(tmp_path / "frame.hdr"), 0.25, atol=0.01)
+    frame[4:8, 4:8] = 40.0
+    cv2.imwrite(str(tmp_path / "scene.hdr"), frame)
+    shutil.copy(tmp_path / "scene.hdr", tmp_path / "scene-without-suffix")
+    for name in ("scene.hdr", "scene-without-suffix"):
+        with pytest.raises(InputError, match=f"{name}: values reach .*above white"):
+            read_ldr_frame(tmp_path / name)
+
+
+def test_a_jpeg_is_refused_as_one_whatever_its_name(tmp_path):
+    (tmp_path / "IMG_0001").write_bytes(cv2.imencode(".jpg", np.full((8, 8, 3), 128, np.uint8))[1].tobytes())
+    with pytest.raises(InputError, match="IMG_0001: a JPEG is 8-bit and gamma-encoded"):
+        read_ldr_frame(tmp_path / "IMG_0001")
