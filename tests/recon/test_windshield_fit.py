@@ -64,3 +64,11 @@ def test_an_all_clipped_frame_gives_nothing_to_fit_and_stays_finite():
     white = np.ones((48, 64, 3), np.float32)
     cleaned, report = subtract_windshield_streaks(white)
     assert report.blobs == 1 and np.array_equal(cleaned, white)
+
+
+@pytest.mark.parametrize("angle_deg", [1.0, 0.0])
+def test_the_fitted_angle_stays_inside_the_windshield_range(angle_deg):
+    """Streaks steeper than the paper's range (Sec. 7: 2.5-8 degrees either side of the vertical) are fitted at
+    its edge: the refinement stepped from 2.5 to 2.0 and 1.75 degrees, an angle the search never covers."""
+    cleaned, report = subtract_windshield_streaks(capture(night(), two_point_star(63, angle_deg)))
+    assert 2.5 <= abs(report.angle_deg) <= 8.0, report.angle_deg
