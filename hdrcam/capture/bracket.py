@@ -226,11 +226,12 @@ class BracketCapture:
         notch = nearest_shutter(plan.shortest_s)
         statistics = {notch.index: self._shoot_one(bracket, notch, False, plan)}
         while statistics[notch.index].clipped_px and len(statistics) < plan.stops:
-            if notch.index + step >= len(SHUTTER_NOTCHES):
+            shorter = min(notch.index + step, len(SHUTTER_NOTCHES) - 1)  # past the end: the shortest the shutter has
+            if shorter == notch.index:
                 bracket.notes.append(f"still {statistics[notch.index].clipped_px} clipped px at {notch.label} s, "
                                      "the shortest exposure: add an ND filter")
                 break
-            notch = SHUTTER_NOTCHES[notch.index + step]
+            notch = SHUTTER_NOTCHES[shorter]
             statistics[notch.index] = self._shoot_one(bracket, notch, False, plan)
         longest = SHUTTER_NOTCHES[min(statistics)]
         while statistics[longest.index].snr_at_percentile < plan.target_snr and len(statistics) < plan.stops:

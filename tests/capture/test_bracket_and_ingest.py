@@ -81,7 +81,10 @@ def test_auto_goes_shorter_while_the_roi_clips_and_says_when_it_cannot(tmp_path)
     assert bracket.frames[0].exposure_label == "1/500"  # 1/60 clips at 3x full well, 1/500 does not
     blinding = BracketPlan(shortest_s=1 / 4000, stops=5, ev_step=3.0, auto=True)
     bracket = shoot("sim", tmp_path / "b", blinding, scene="flat:1e5")
-    assert any("add an ND filter" in note for note in bracket.notes)
+    # 3 EV shorter than 1/4000 is past the shutter's end: it takes its shortest, 1/8000, before it gives up
+    # (it stopped at 1/4000 and called that the shortest exposure)
+    assert sorted(frame.exposure_label for frame in bracket.frames) == ["1/4000", "1/8000"]  # frames: shortest first
+    assert any("at 1/8000 s, the shortest exposure: add an ND filter" in note for note in bracket.notes)
 
 
 def test_darks_are_captured_at_the_light_exposures(tmp_path, capsys):
