@@ -215,7 +215,7 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
                   device=device, quiet=quiet, data_workers=data_workers)
 
 
-def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None = None, data: str | None = None,
+def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path | None = None, data: str | None = None,
              steps: int | None = None, batch: int | None = None, crop_px: int | None = None,
              learning_rate: float | None = None, seed: int | None = None, checkpoint_every: int | None = None,
              precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
@@ -224,6 +224,7 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
     learning rate (2e-4: the network already works). Writes the run folder ``out`` (model.pt at the end).
+    ``psf`` may be None with ``resume``: the run's own PSF file.
 
     ``partner`` (default true): when the starting checkpoint NAME.pt has a partner NAME-partner.pt beside it (a
     second network trained behind the same PSF, which reconstruct runs with it; the shipped checkpoint has one),
@@ -244,6 +245,11 @@ def finetune(psf: str | Path, out: str | Path, *, checkpoint: str | Path | None 
     out = Path(out)
     start = Path(checkpoint).resolve() if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
+    if psf is None:
+        psf = _run_psf(out) if resume else None
+        if psf is None:
+            raise InputError("finetune needs --psf, the measured PSF to train behind (e.g. calibration/NAME/psf.exr)"
+                             + (f"; {out} holds no run to take it from" if resume else ""))
     if Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
         raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
     if not Path(psf).is_file():
@@ -310,6 +316,12 @@ def _saved_config(out: Path) -> dict | None:
     if saved.is_file():
         return read_checkpoint(saved)["config"]
     return json.loads(claimed.read_text()) if claimed.is_file() else None
+
+
+def _run_psf(out: Path) -> str | None:
+    """The PSF file a fine-tuning run in ``out`` recorded, or None when it holds no run."""
+    config = _saved_config(out)
+    return config.get("psf") if config else None
 
 
 def _main_seed(seed: int | None, saved_config: dict | None) -> int:

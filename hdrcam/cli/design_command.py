@@ -66,7 +66,8 @@ def register(commands) -> None:
                                                "e.g. calibration/NAME/psf.exr, and then its partner network "
                                                "(see --no-partner).")
     finetune.add_argument("--checkpoint", type=Path, default=None, help="start from this (default: the shipped one)")
-    finetune.add_argument("--psf", type=Path, required=True, help="PSF EXR, e.g. calibration/NAME/psf.exr")
+    finetune.add_argument("--psf", type=Path, default=None,
+                          help="PSF EXR, e.g. calibration/NAME/psf.exr (with --resume: the run's own by default)")
     finetune.add_argument("--no-partner", dest="partner", action="store_false",
                           help="fine-tune the checkpoint alone. By default, when it has a partner (NAME-partner.pt "
                                "beside NAME.pt: a second network trained behind the same PSF, which reconstruct "

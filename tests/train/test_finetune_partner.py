@@ -157,7 +157,7 @@ def test_a_partner_restarted_by_a_bare_resume_takes_the_main_runs_options(tmp_pa
     steps = _stop_the_partner_at_once(monkeypatch)
     assert main(_finetune(out, "--lr", "1e-4")) == 130
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--psf", str(MEASURED_PSF), "--out", str(out), "--resume"]) == 0
+    assert main(["finetune", "--out", str(out), "--resume"]) == 0  # the run's own PSF (--psf was required)
     capsys.readouterr()
     main_run = json.loads((out / "config.json").read_text())
     partner = json.loads((out / "partner" / "config.json").read_text())
@@ -180,10 +180,15 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     assert main(_finetune(out, "--no-partner", "--lr", "1e-4")) == 130
     assert not (out / "checkpoint.pt").exists()
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--psf", str(MEASURED_PSF), "--out", str(out), "--resume", "--no-partner"]) == 0
+    assert main(["finetune", "--out", str(out), "--resume", "--no-partner"]) == 0  # its PSF from config.json
     capsys.readouterr()
     saved = read_checkpoint(out / "checkpoint.pt")["config"]
     assert (saved["steps"], saved["crop_px"], saved["learning_rate"]) == (2, 64, 1e-4)
+    assert Path(saved["psf"]).resolve() == MEASURED_PSF.resolve()
+    assert main(["finetune", "--out", str(tmp_path / "new")]) == 1  # a new run has no PSF to take
+    assert "finetune needs --psf" in capsys.readouterr().err
+    assert main(["finetune", "--out", str(tmp_path / "new"), "--resume"]) == 1
+    assert "holds no run to take it from" in capsys.readouterr().err
 
 
 def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_path, capsys):
