@@ -3,9 +3,9 @@
 The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, about a quarter
 smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
 attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
-most PREVIEW_SIDE_PX on its longer side and turned upright. The preview is made on a second thread while the EXR
-is written (OpenEXR releases the GIL); the two are published together once both are written: a failure or an
-interrupt before that leaves neither."""
+most 2048 px (PREVIEW_SIDE_PX) on its longer side and turned upright. The preview is made on a second thread
+while the EXR is written (OpenEXR releases the GIL); the two are published together once both are written: a
+failure or an interrupt before that leaves neither."""
 
 from __future__ import annotations
 

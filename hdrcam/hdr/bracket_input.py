@@ -142,9 +142,12 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
         _refuse_copies(frames)
+        names = [f.metadata.path.name for f in frames]
+        shown = [str(f.metadata.path) if names.count(f.metadata.path.name) > 1 else f.metadata.path.name
+                 for f in frames]  # frames of the same name from two folders: their paths tell them apart
         raise InputError(f"two {kind} frames of the bracket have the same exposure time (one frame per exposure"
                          f"{'; average repeated darks first' if kind == 'dark' else ''}): "
-                         + ", ".join(f"{f.metadata.path.name} {f.metadata.exposure_s:g} s" for f in frames))
+                         + ", ".join(f"{name} {f.metadata.exposure_s:g} s" for name, f in zip(shown, frames)))
     for frame in frames:
         if not np.isfinite(frame.metadata.exposure_s):
             raise InputError(f"{frame.metadata.path}: exposure time is not finite")

@@ -504,3 +504,15 @@ def test_another_makes_labels_are_said_to_be_taken_as_written(tmp_path):
     notes = merge_bayer(frames, PROFILE.camera).notes
     assert notes[-1].startswith("Canon's labels taken as written (exact times or the notches' nominal labels")
     assert not any("taken as written" in note for note in merge_bayer(read_bracket([tmp_path]), PROFILE.camera).notes)
+
+
+def test_frames_of_one_name_from_two_folders_with_one_exposure_are_told_apart_by_their_paths(tmp_path):
+    """Two brackets' frame-00.dng given together were named 'frame-00.dng 0.00025 s, frame-00.dng 0.00025 s'."""
+    capture(tmp_path / "a", stops=2)
+    capture(tmp_path / "b", stops=2, seed=1)  # another scene: not a copy
+    with pytest.raises(InputError, match="same exposure time") as refusal:
+        read_bracket([tmp_path / "a" / "frame-00.dng", tmp_path / "a" / "frame-01.dng",
+                      tmp_path / "b" / "frame-00.dng"])
+    message = str(refusal.value)
+    assert str(tmp_path / "a" / "frame-00.dng") in message and str(tmp_path / "b" / "frame-00.dng") in message
+    assert "frame-01.dng" in message and str(tmp_path / "a" / "frame-01.dng") not in message
