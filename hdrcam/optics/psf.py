@@ -18,17 +18,19 @@ Model "fraunhofer" evaluates the same paraxial model as a scaled Fourier transfo
 transforms (:mod:`hdrcam.optics.fraunhofer`): no grid fine enough for the lens phase, so the paper's 9.16 mm
 aperture at 50 mm costs a second on a CPU instead of 4608^2 FFTs.
 
-Accuracy. Both models integrate a pixel by summing point samples in it (the grid's ``upsample`` x ``upsample``,
-the chirp-z model's 7 x 7); for a diffraction spot about a pixel wide that sum, not the propagation, sets the
-centre pixel. At the same 3 points per pixel the chirp-z model and the A7 profile's 4608^2 Fresnel grid agree to
-9e-6 per pixel of the light through the aperture for a clear aperture and 8e-5 for the seeded rank1 map
-(``python tools/bench_fraunhofer.py --heightmap none`` or ``rank1``; 5e-5 on the trained map of
-tools/results/table2). At the defaults they differ by up to 0.024 per pixel:
-centre pixel of a clear aperture (R/G/B, of the 31 px crop; ``hdrcam psf --doe none --psf-size 31`` with and
-without ``--propagation fresnel``, pixel (15, 15) of psf.exr, float32): chirp-z 0.8145/0.8405/0.8463 in 1.2 s,
-Fresnel grid 0.8387/0.8470/0.8255 in 8.4 s, the Airy pattern integrated over the pixel (61 x 61 points)
-0.8090/0.8376/0.8477. The grid's 3 samples per pixel are off by +0.030/+0.009/-0.022, the chirp-z's 7 by
-+0.006/+0.003/-0.001. The Fresnel grid of profile ``simulated`` is coarser still: see :mod:`hdrcam.optics.grid`.
+Accuracy. The grid models integrate each pixel exactly (:meth:`SimulationGrid.integrate_pixels`: the
+band-limited field's intensity box-filtered by the pixel), within 1e-4 of the pixel-integrated Airy pattern on
+the coarsest unaliased grid (tests/optics/test_psf_physics.py); the chirp-z model sums 7 x 7 point samples per
+pixel (+0.7 % on the f/9.8 centre pixel of profile ``simulated``). Measured before the grid models integrated
+pixels, when they too summed point samples: at the same 3 points per pixel the chirp-z model and the A7
+profile's 4608^2 Fresnel grid agreed to 9e-6 per pixel of the light through the aperture for a clear aperture
+and 8e-5 for the seeded rank1 map (``python tools/bench_fraunhofer.py --heightmap none`` or ``rank1``; 5e-5 on
+the trained map of tools/results/table2); at the defaults the centre pixel of a clear aperture (R/G/B, of the
+31 px crop; ``hdrcam psf --doe none --psf-size 31`` with and without ``--propagation fresnel``, pixel (15, 15)
+of psf.exr, float32) was chirp-z 0.8145/0.8405/0.8463 in 1.2 s, Fresnel grid (3 point samples per pixel)
+0.8387/0.8470/0.8255 in 8.4 s, the Airy pattern integrated over the pixel (61 x 61 points) 0.8090/0.8376/0.8477:
+the grid's point samples were off by +0.030/+0.009/-0.022, the chirp-z's 7 by +0.006/+0.003/-0.001 (profile
+``simulated``: :mod:`hdrcam.optics.grid`).
 
 Intensities are normalised so the light through the aperture carries unit energy.
 """
@@ -54,7 +56,9 @@ from hdrcam.limits import check_memory
 from hdrcam.profiles import Profile, image_distance_m
 
 _COMPLEX = {torch.float32: torch.complex64, torch.float64: torch.complex128}
-WAVE_BYTES_PER_SAMPLE = 96  # complex fields, phases and FFT buffers of one wavelength at float64, per grid sample
+WAVE_BYTES_PER_SAMPLE = 400  # complex fields, phases and FFT buffers of one wavelength at float64, per grid sample:
+# the exact pixel integrals work on a grid twice as fine (SimulationGrid.integrate_pixels); measured 380 per sample
+# for a 1024^2 grid (peak RSS of `hdrcam psf --psf-size 511 --dtype float64` less the 300 MB of torch)
 MIN_WAVELENGTH_STEP_M = 0.1e-9
 
 
@@ -220,10 +224,14 @@ class PsfSimulator(nn.Module):
         fine_heights = sample_heightmap(heights.to(self.dtype), self.feature_index)
         return torch.polar(self.aperture, fine_heights * self.phase_per_height[index]) * pupil
 
+    def sensor_field(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
+        """Complex field u_s on the fine grid for wavelength ``index``, unnormalised."""
+        pupil, transfer = self._pupil_and_transfer(index)
+        return propagate(self._field_behind_lens(index, heights_m, pupil), transfer)
+
     def fine_intensity(self, index: int, heights_m: torch.Tensor | None = None) -> torch.Tensor:
         """|u_s|^2 on the fine grid for wavelength ``index``; sums to 1 when nothing is evanescent."""
-        pupil, transfer = self._pupil_and_transfer(index)
-        field = propagate(self._field_behind_lens(index, heights_m, pupil), transfer)
+        field = self.sensor_field(index, heights_m)
         return (field.real ** 2 + field.imag ** 2) / self.input_energy
 
     def sensor_psf_uncropped(self, heights_m: torch.Tensor | None = None) -> torch.Tensor:
@@ -233,7 +241,8 @@ class PsfSimulator(nn.Module):
         bands = [None, None, None]
         counts = [len(band) for band in self.setup.band_wavelengths_m]
         for index, band in enumerate(self.band_of_wavelength):
-            binned = grid.bin_to_sensor(self.fine_intensity(index, heights)) / counts[band]
+            # exact pixel integrals of the intensity, not upsample x upsample point samples per pixel
+            binned = grid.integrate_pixels(self.sensor_field(index, heights)) / (self.input_energy * counts[band])
             bands[band] = binned if bands[band] is None else bands[band] + binned
         return torch.stack(bands)
 
