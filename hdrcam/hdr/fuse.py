@@ -28,6 +28,8 @@ from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
 UNITS = "relative radiance: full wells per second at ISO 100"
+VARIANCE_DEMOSAIC = "bilinear"  # whatever the image's method: a weighted mean of variances stays one; Menon's
+# edge-directed estimate of a variance plane, made for images, put 0 at thousands of measured samples
 COLOUR_STRIP_ROWS = 64
 
 
@@ -119,8 +121,8 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
 
     ``camera``: the profile's sensor (full well, read noise: the merge's noise model). ``darks``: dark frames
     (a bracket.json or folder) replacing the black level. ``camera_rgb``: keep camera RGB instead of linear
-    sRGB. ``with_variance``: also the per-channel variance. ``demosaic_method``: one of
-    ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per second at ISO 100.
+    sRGB. ``with_variance``: also the per-channel variance (demosaiced bilinearly whatever the image's method).
+    ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per second at ISO 100.
     """
     frames = read_bracket(sources)
     if all(all_clipped(frame.bayer_dn, frame.clip_level_tile_dn) for frame in frames):
@@ -134,7 +136,7 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         warnings.warn(f"the frames' EXIF orientations differ ({', '.join(map(str, orientations))}; the camera was "
                       f"tilted between shots): the preview is turned as {meta.path.name}'s ({meta.orientation})")
     rgb = demosaic(merge.rate, meta.cfa_pattern, demosaic_method)
-    variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, demosaic_method) if with_variance else None
+    variance = demosaic(merge.variance.clip(max=1e30), meta.cfa_pattern, VARIANCE_DEMOSAIC) if with_variance else None
     clipped = cv2.dilate(merge.clipped_everywhere.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
     colour = "camera RGB"
     if not camera_rgb and not meta.has_colour_matrix:

@@ -47,3 +47,15 @@ def test_the_colour_transform_is_the_matrix_product_on_every_strip():
     result = transformed(pixels, matrix)
     assert result is pixels
     np.testing.assert_allclose(result, exact, rtol=0, atol=2e-6 * np.abs(exact).max())
+
+
+def test_variance_is_positive_wherever_a_sample_was_measured_whatever_the_demosaic():
+    """--variance --camera-rgb --demosaic menon2007 wrote variance 0 (a value claimed exact) at thousands of
+    measured pixels: Menon's edge-directed interpolation of a variance plane. The variance is demosaiced
+    bilinearly whatever the image's method, so it equals the bilinear fuse's."""
+    camera = load_profile("simulated").camera
+    menon = fuse([DATA / "bracket-96x64"], camera, camera_rgb=True, with_variance=True,
+                 demosaic_method="menon2007")
+    bilinear = fuse([DATA / "bracket-96x64"], camera, camera_rgb=True, with_variance=True)
+    assert (menon.variance > 0).all()
+    np.testing.assert_array_equal(menon.variance, bilinear.variance)
