@@ -13,6 +13,7 @@ import contextlib
 import dataclasses
 import datetime as dt
 import json
+import math
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -22,14 +23,15 @@ from tqdm import tqdm
 
 from hdrcam.capture.camera import Camera, CapturedFrame, ExposureSettings
 from hdrcam.capture.manifest import IN_PROGRESS, MANIFEST_NAME, Bracket, BracketFrame, sha256_of
-from hdrcam.capture.notches import (NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, iso_setting,
-                                    nearest_shutter, notch_step, shutter_notch_within_range)
+from hdrcam.capture.notches import (NOTCHES_PER_EV, SHUTTER_NOTCHES, ShutterNotch, bracket_notches, exposure_label,
+                                    iso_setting, nearest_shutter, notch_step, shutter_notch_within_range)
 from hdrcam.errors import HdrcamError, InputError, Interrupted, OutputExistsError, failure_message
 from hdrcam.io.atomic import TEMPORARY_SUFFIX, move_without_clobbering
 from hdrcam.io.raw import read_raw
 from hdrcam.profiles import CameraSpec
 
 CLIP_MARGIN = 0.01  # of the black-to-white range: samples above white - margin count as clipped
+NOTCH_LABEL_TOLERANCE_EV = 0.05  # a --shortest further than this from its notch's label is said to be moved
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,6 +133,10 @@ class BracketCapture:
         if resume is not None:
             bracket = self._continued(resume, bracket)
         else:
+            first = nearest_shutter(plan.shortest_s)
+            if kind == "light" and abs(math.log2(float(first.nominal) / plan.shortest_s)) > NOTCH_LABEL_TOLERANCE_EV:
+                bracket.notes.append(f"--shortest {exposure_label(plan.shortest_s)} s is not a shutter notch: taken "
+                                     f"as the nearest, {first.label} s")
             bracket.write(self.folder)  # refuses (OutputExistsError) if another capture holds the folder
         try:
             if plan.iso is not None:

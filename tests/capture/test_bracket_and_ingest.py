@@ -218,3 +218,12 @@ def test_damaged_raw_files_are_input_errors(tmp_path, content):
 
 def test_nearest_shutter_handles_the_extremes():
     assert nearest_shutter(1e-9).label == "1/8000" and nearest_shutter(1e4).label == '30"'
+
+
+@pytest.mark.parametrize("shortest, note", [(1 / 3000, "--shortest 1/3000 s is not a shutter notch: taken as the "
+                                                         "nearest, 1/3200 s"), (1 / 4000, None)])
+def test_a_shortest_exposure_between_notches_is_said_to_be_moved(tmp_path, shortest, note):
+    """1/3000 s was quietly shot at the 1/3200 notch; a notch's own label (1/4000) says nothing."""
+    bracket = shoot("sim", tmp_path, BracketPlan(shortest_s=shortest, stops=2, ev_step=3.0), scene="flat:0.2")
+    moved = [text for text in bracket.notes if "not a shutter notch" in text]
+    assert moved == ([note] if note else [])
