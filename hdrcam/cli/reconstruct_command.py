@@ -47,7 +47,9 @@ def register(commands) -> None:
                         help="one network pass instead of two (the frame and its mirror image, keeping only what "
                              "both paint): half the network time, more invented highlights (see README)")
     parser.add_argument("--tile", type=int_at_least(MIN_TILE_PX), default=DEFAULT_CORE_PX, metavar="PX",
-                        help=f"largest tile core, at least {MIN_TILE_PX} (default {DEFAULT_CORE_PX}; bounds memory)")
+                        help=f"largest tile core, at least {MIN_TILE_PX} (default {DEFAULT_CORE_PX}; bounds memory, "
+                             "and changes the result: the networks normalise each window by its own statistics; "
+                             "the default is what evaluate scores)")
     parser.add_argument("--halo", type=positive_int, default=DEFAULT_HALO_PX, metavar="PX",
                         help=f"tile context per side (default {DEFAULT_HALO_PX})")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
