@@ -98,7 +98,8 @@ def run(arguments: argparse.Namespace) -> int:
         "sensor_distance_m": setup.sensor_distance_m, "propagation": setup.propagation,
         "wavelengths_m": [list(band) for band in setup.band_wavelengths_m],
         **({"subpixels": FRAUNHOFER_SUBPIXELS, "cells_per_feature": cells_per_feature} if grid is None else
-           {"grid_size": grid.size, "grid_pitch_m": grid.pitch_m, "upsample": grid.upsample}),
+           {"grid_size": grid.size, "grid_pitch_m": grid.pitch_m, "upsample": grid.upsample,
+            "lens_phase_aliased": grid.lens_phase_aliased}),
         "psf_size_px": setup.psf_size_px, "pixel_pitch_m": setup.pixel_pitch_m,
         "centre_energy_fraction_rgb": centre.tolist(), "crop_energy_fraction_rgb": crop.tolist(),
         "seconds": round(seconds, 3), "device": str(device), "dtype": arguments.dtype,

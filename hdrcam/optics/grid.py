@@ -55,6 +55,7 @@ class SimulationGrid:
     pixel_pitch_m: float
     upsample: int
     sensor_pixels: int  # M: the grid covers M x M sensor pixels
+    lens_phase_aliased: bool = False  # chosen coarser than the lens phase needs (allow_aliasing)
 
     @property
     def pitch_m(self) -> float:
@@ -98,7 +99,8 @@ class SimulationGrid:
         pixels = max(psf_size_px, math.ceil(aperture_m / pitch_m / chosen - 1e-9))
         while not is_fast_length(pixels * chosen):
             pixels += 1
-        return cls(pixel_pitch_m=pixel_pitch_m, upsample=chosen, sensor_pixels=pixels)
+        return cls(pixel_pitch_m=pixel_pitch_m, upsample=chosen, sensor_pixels=pixels,
+                   lens_phase_aliased=chosen < needed)
 
     def integrate_pixels(self, field):
         """Exact pixel integrals of |u|^2 (..., M, M) for a complex field (..., N, N) on this grid, in units of |u|^2

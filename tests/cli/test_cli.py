@@ -48,7 +48,10 @@ def test_psf_writes_unit_sum_psf_heightmap_png_and_record(tmp_path, capsys):
     heights = read_exr(out / "heightmap.exr")
     assert heights.single().shape == (64, 64) and heights.attributes["pixel_pitch_m"] == pytest.approx(32e-6, rel=1e-6)
     record = json.loads((out / "psf.json").read_text())
-    assert record["grid_size"] == 720 and record["upsample"] == 2
+    assert record["grid_size"] == 720 and record["upsample"] == 2 and record["lens_phase_aliased"] is False
+    assert main(["psf", "--profile", "simulated", "--upsample", "1", "--allow-aliasing", "--psf-size", "15",
+                 "--out", str(tmp_path / "aliased")]) == 0  # a file that says so (psf.json held only upsample)
+    assert json.loads((tmp_path / "aliased" / "psf.json").read_text())["lens_phase_aliased"] is True
     assert (out / "psf.png").read_bytes()[:4] == b"\x89PNG"
     assert "energy in the 7 px centre" in capsys.readouterr().out
 

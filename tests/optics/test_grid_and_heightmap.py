@@ -40,6 +40,7 @@ def test_an_aliasing_grid_is_refused_with_numbers_or_warned_when_allowed():
         warnings.simplefilter("always")
         grid = SimulationGrid.for_optics(**arguments, allow_aliasing=True)
     assert grid.upsample == 2 and any("aliases" in str(w.message) for w in caught)
+    assert grid.lens_phase_aliased and not SimulationGrid.for_optics(**{**arguments, "upsample": 3}).lens_phase_aliased
 
 
 @pytest.mark.parametrize("upsample", [1, 2, 3, 4])
