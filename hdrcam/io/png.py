@@ -36,24 +36,43 @@ PNG_CICP_LINEAR = 8  # cICP transfer characteristics (ITU-T H.273): 8 is linear
 
 
 def declared_nonlinear_encoding(path: Path) -> str | None:
-    """What a PNG's colour chunks (those before its image data) say of a non-linear encoding - an sRGB chunk, a
-    gAMA other than 1.0, a cICP transfer other than linear - or None (no such chunk, a linear one, not a PNG).
-    16-bit PNGs from photo editors and RAW converters carry these."""
+    """What a PNG's colour chunks (those before its image data) say of a non-linear encoding, by the PNG
+    specification's precedence (cICP over iCCP over sRGB over gAMA): a cICP transfer other than linear, an ICC
+    profile (its curve is not read: refused as not known to be linear), an sRGB chunk, a gAMA other than 1.0 -
+    or None (no such chunk, a linear one, not a PNG). 16-bit PNGs from photo editors and RAW converters carry
+    these. Chunk lengths are not trusted: only the small colour chunks are read, the others skipped."""
+    said: dict[bytes, str | None] = {}
     with open(path, "rb") as file:
         if file.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
             return None
         while len(header := file.read(8)) == 8:
             length, kind = struct.unpack(">I4s", header)
             if kind in (b"IDAT", b"IEND"):
-                return None
-            body = file.read(length)
-            file.seek(4, 1)  # the chunk's CRC
-            if kind == b"sRGB":
-                return "an sRGB chunk"
-            if kind == b"gAMA" and len(body) == 4:
-                value = struct.unpack(">I", body)[0]
-                if value and abs(value - PNG_LINEAR_GAMMA) > PNG_LINEAR_GAMMA // 100:
-                    return f"gAMA {value / PNG_LINEAR_GAMMA:.5g} (encoding exponent {PNG_LINEAR_GAMMA / value:.3g})"
-            if kind == b"cICP" and len(body) >= 2 and body[1] != PNG_CICP_LINEAR:
-                return f"cICP transfer {body[1]}"
+                break
+            if kind in (b"cICP", b"sRGB", b"gAMA") and length <= COLOUR_CHUNK_MAX_BYTES:
+                said.setdefault(kind, _nonlinear(kind, file.read(length)))
+                file.seek(4, 1)  # the chunk's CRC
+            else:
+                said.setdefault(kind, "an ICC profile (iCCP) whose curve hdrcam does not read" if kind == b"iCCP"
+                                else None)
+                file.seek(length + 4, 1)
+    for kind in (b"cICP", b"iCCP", b"sRGB", b"gAMA"):
+        if kind in said:
+            return said[kind]
+    return None
+
+
+COLOUR_CHUNK_MAX_BYTES = 16  # cICP holds 4 bytes, gAMA 4, sRGB 1
+
+
+def _nonlinear(kind: bytes, body: bytes) -> str | None:
+    """What one colour chunk says of a non-linear encoding, or None when it says the samples are linear."""
+    if kind == b"sRGB":
+        return "an sRGB chunk"
+    if kind == b"gAMA" and len(body) == 4:
+        value = struct.unpack(">I", body)[0]
+        if value and abs(value - PNG_LINEAR_GAMMA) > PNG_LINEAR_GAMMA // 100:
+            return f"gAMA {value / PNG_LINEAR_GAMMA:.5g} (encoding exponent {PNG_LINEAR_GAMMA / value:.3g})"
+    if kind == b"cICP" and len(body) >= 2 and body[1] != PNG_CICP_LINEAR:
+        return f"cICP transfer {body[1]}"
     return None

@@ -163,3 +163,35 @@ def test_a_jpeg_is_refused_as_one_whatever_its_name(tmp_path):
     (tmp_path / "IMG_0001").write_bytes(cv2.imencode(".jpg", np.full((8, 8, 3), 128, np.uint8))[1].tobytes())
     with pytest.raises(InputError, match="IMG_0001: a JPEG is 8-bit and gamma-encoded"):
         read_ldr_frame(tmp_path / "IMG_0001")
+
+
+@pytest.mark.parametrize("chunks, refused", [
+    ([(b"iCCP", b"sRGB profile\x00\x00" + bytes(20))], "an ICC profile"),  # a curve not read: not known linear
+    ([(b"cICP", bytes([1, 8, 0, 1])), (b"sRGB", b"\x00")], None),  # cICP takes precedence: linear
+    ([(b"gAMA", (100000).to_bytes(4, "big")), (b"sRGB", b"\x00")], "an sRGB chunk"),  # sRGB over gAMA
+])
+def test_png_colour_chunks_are_read_by_the_specifications_precedence(tmp_path, chunks, refused):
+    """The first colour chunk decided, and an ICC profile alone read as linear; cICP > iCCP > sRGB > gAMA."""
+    path = _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(kind, body) for kind, body in chunks])
+    if refused is None:
+        assert read_ldr_frame(path).shape == (48, 64, 3)
+    else:
+        with pytest.raises(InputError, match=f"declares {refused}"):
+            read_ldr_frame(path)
+
+
+def test_a_png_chunk_that_claims_gigabytes_is_skipped_not_read(tmp_path):
+    """A damaged length (4 GB) was read into memory: MemoryError under an address-space limit."""
+    import resource
+
+    image = cv2.imencode(".png", np.zeros((8, 8, 3), np.uint16))[1].tobytes()
+    damaged = image[:33] + (0xFFFFFFF0).to_bytes(4, "big") + b"tEXt" + b"junk" + image[33:]
+    (tmp_path / "frame.png").write_bytes(damaged)
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    in_use = int(next(line for line in open("/proc/self/status") if line.startswith("VmSize")).split()[1]) << 10
+    resource.setrlimit(resource.RLIMIT_AS, (in_use + (1 << 30), hard))  # 1 GB more than this process holds
+    try:
+        with pytest.raises(InputError, match="frame.png"):
+            read_ldr_frame(tmp_path / "frame.png")
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
