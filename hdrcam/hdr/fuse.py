@@ -122,7 +122,8 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     ``camera``: the profile's sensor (full well, read noise: the merge's noise model). ``darks``: dark frames
     (a bracket.json or folder) replacing the black level. ``camera_rgb``: keep camera RGB instead of linear
     sRGB. ``with_variance``: also the per-channel variance (demosaiced bilinearly whatever the image's method).
-    ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per second at ISO 100.
+    ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per
+    second at ISO 100.
     """
     frames = read_bracket(sources)
     if all(all_clipped(frame.bayer_dn, frame.clip_level_tile_dn) for frame in frames):

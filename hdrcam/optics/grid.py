@@ -128,8 +128,11 @@ class SimulationGrid:
             padded[..., half, :] = padded[..., 2 * n - half, :]
             padded[..., :, 2 * n - half] *= 0.5 ** 0.5
             padded[..., :, half] = padded[..., :, 2 * n - half]
+        del spectrum
         fine = torch.fft.ifft2(padded) * 4.0  # the interpolant at pitch / 2
+        del padded
         intensity = fine.real ** 2 + fine.imag ** 2
+        del fine
         frequencies = torch.fft.fftfreq(2 * n, d=self.pitch_m / 2.0, dtype=intensity.dtype, device=intensity.device)
         box = torch.sinc(frequencies * self.pixel_pitch_m)  # mean over a pixel-wide box, per axis
         mean = torch.fft.ifft2(torch.fft.fft2(intensity) * box[:, None] * box[None, :]).real

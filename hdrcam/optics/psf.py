@@ -56,9 +56,10 @@ from hdrcam.limits import check_memory
 from hdrcam.profiles import Profile, image_distance_m
 
 _COMPLEX = {torch.float32: torch.complex64, torch.float64: torch.complex128}
-WAVE_BYTES_PER_SAMPLE = 400  # complex fields, phases and FFT buffers of one wavelength at float64, per grid sample:
-# the exact pixel integrals work on a grid twice as fine (SimulationGrid.integrate_pixels); measured 380 per sample
-# for a 1024^2 grid (peak RSS of `hdrcam psf --psf-size 511 --dtype float64` less the 300 MB of torch)
+WAVE_BYTES_PER_SAMPLE = 450  # fields, phases and FFT buffers of one wavelength, per grid sample: the exact pixel
+# integrals work on a grid twice as fine (SimulationGrid.integrate_pixels). Peak RSS over the set-up for a 1024^2
+# grid (profile simulated, --psf-size 511): 344 float64 forward (hdrcam psf), 386 float32 with gradients (design);
+# float64 with gradients, which no command runs, 755
 MIN_WAVELENGTH_STEP_M = 0.1e-9
 
 
