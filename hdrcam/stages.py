@@ -246,10 +246,12 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     start = Path(checkpoint).resolve() if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
     if psf is None:
-        psf = _run_psf(out) if resume else None
-        if psf is None:
-            raise InputError("finetune needs --psf, the measured PSF to train behind (e.g. calibration/NAME/psf.exr)"
-                             + (f"; {out} holds no run to take it from" if resume else ""))
+        if not resume:
+            raise InputError("finetune needs --psf, the measured PSF to train behind (e.g. calibration/NAME/psf.exr)")
+        psf = _run_psf(out)
+        if not Path(psf).is_file():
+            raise InputError(f"the PSF {out} was fine-tuned behind ({psf}, its config.json) is gone; give it, or a "
+                             "copy of it, with --psf")
     if Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
         raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
     if not Path(psf).is_file():
@@ -318,10 +320,19 @@ def _saved_config(out: Path) -> dict | None:
     return json.loads(claimed.read_text()) if claimed.is_file() else None
 
 
-def _run_psf(out: Path) -> str | None:
-    """The PSF file a fine-tuning run in ``out`` recorded, or None when it holds no run."""
+def _run_psf(out: Path) -> str:
+    """The PSF file the fine-tuning run in ``out`` recorded; InputError when ``out`` holds no run, or a run that
+    trained behind no PSF file (a DOE design, a fixed PSF by name)."""
+    from hdrcam.errors import InputError
+    from hdrcam.train.choices import FIXED_PSFS
+
     config = _saved_config(out)
-    return config.get("psf") if config else None
+    if config is None:
+        raise InputError(f"finetune --resume: {out} holds no run to resume; start one with --psf")
+    if not config.get("psf") or config["psf"] in FIXED_PSFS:
+        raise InputError(f"finetune --resume: {out} holds a run trained behind no PSF file (a design run?); "
+                         "resume it with the command that made it")
+    return config["psf"]
 
 
 def _main_seed(seed: int | None, saved_config: dict | None) -> int:

@@ -188,7 +188,16 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     assert main(["finetune", "--out", str(tmp_path / "new")]) == 1  # a new run has no PSF to take
     assert "finetune needs --psf" in capsys.readouterr().err
     assert main(["finetune", "--out", str(tmp_path / "new"), "--resume"]) == 1
-    assert "holds no run to take it from" in capsys.readouterr().err
+    assert "holds no run to resume; start one with --psf" in capsys.readouterr().err
+    moved = tmp_path / "moved.exr"
+    shutil.copy(MEASURED_PSF, moved)
+    config = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**config, "psf": str(tmp_path / "gone.exr")}))
+    (out / "checkpoint.pt").unlink()  # the run as if stopped before its first checkpoint: config.json holds the PSF
+    assert main(["finetune", "--out", str(out), "--resume", "--no-partner"]) == 1
+    assert f"({tmp_path / 'gone.exr'}, its config.json) is gone; give it, or a copy of it, with --psf" in \
+        capsys.readouterr().err
+    assert main(["finetune", "--psf", str(moved), "--out", str(out), "--resume", "--no-partner"]) == 0
 
 
 def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_path, capsys):
