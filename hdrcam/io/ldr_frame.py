@@ -12,8 +12,8 @@
 - 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
   clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs and PNGs whose colour chunks
   declare a non-linear transfer (sRGB, a gAMA other than 1, a cICP transfer other than linear, an ICC profile)
-  are refused (gamma-encoded, or not known to be linear); a 16-bit TIFF's ICC profile is not read. A file that starts like an EXR, a Radiance file or a JPEG is taken as one
-  whatever its name.
+  are refused (gamma-encoded, or not known to be linear); a 16-bit TIFF's ICC profile is not read. A file that
+  starts like an EXR, a Radiance file or a JPEG is taken as one whatever its name.
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
 """
 
