@@ -45,7 +45,10 @@ only take that excess down, never up, so the result is never brighter than the p
   dev night scenes (light-weighted 95th percentile 17). On a flat or noise-limited surround s_T = 0 and a
   stands (a lamp proposed 4 x too bright is cut to its truth); on a textured one the amount is left to the
   upper bound and the evidence decides whether the streaks show the light (tools/results/real-data/README.md,
-  "The amount trusted only as far as the texture allows").
+  "The amount trusted only as far as the texture allows"). The fit runs per channel; the cluster keeps the mean
+  of the three shares in every channel: a highlight is one source seen in three bands, and a share per channel
+  turned the noise of three fits into a colour (white lamps kept as (1, 29, 26): cyan cores;
+  tools/results/real-data/README.md, "One evidence share per cluster").
 - Shape. The frame constrains how much light a blob sends out, not how it is spread inside it: each pixel's
   excess is capped at SHAPE_CAP times its blob's mean excess (per channel, blobs = 8-connected clipped
   pixels), since a misplaced peak (50-100 where the truth is 1.5) costs far more than a flatter fill. A
@@ -170,6 +173,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
                                                 _beyond_reimaged(spill, unclipped, kernel)[inner],
                                                 _beyond_reimaged(band, unclipped, kernel)[inner],
                                                 unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
+        shares = np.full_like(shares, shares.mean())  # one source in three bands: one share keeps its colour
         kept_excess = kept_excess * shares
         if significance >= STRONG_EVIDENCE_Z:
             strong[crop] |= own

@@ -498,7 +498,7 @@ def test_a_real_window_onto_an_overcast_sky_is_not_made_worse_than_the_frame(tmp
 
 
 def test_a_lamp_whose_streaks_confirm_it_keeps_its_core_and_the_shape_cap_applies_without_that_evidence(
-        model, monkeypatch, cut_red_evidence_share):
+        model, monkeypatch, cut_evidence_share):
     """A 7 x 7 lamp on 0.05 (noise as the camera's), its centre pixel at 400 x white over a rim at 3 x: the core is
     ~50 x its blob's mean excess. Proposed exactly, through the shipped DOE, its streaks give the evidence
     fit z far above STRONG_EVIDENCE_Z, so the judge keeps the core; where the evidence keeps less than
@@ -520,8 +520,8 @@ def test_a_lamp_whose_streaks_confirm_it_keeps_its_core_and_the_shape_cap_applie
 
     assert kept_core() >= 0.8 * 400.0
     cap = max(1.0 + consistency.SHAPE_CAP * float((proposal[..., c] - 1.0)[clipped[..., c]].mean()) for c in range(3))
-    with monkeypatch.context() as patched:  # strong z, but the evidence keeps too little of one channel
-        cut_red_evidence_share(patched)
+    with monkeypatch.context() as patched:  # strong z, but the evidence keeps too little of the light
+        cut_evidence_share(patched)
         assert kept_core() <= cap * (1.0 + 1e-5)
     monkeypatch.setattr(consistency, "STRONG_EVIDENCE_Z", np.inf)
     assert kept_core() <= cap * (1.0 + 1e-5) < 0.15 * 400.0
@@ -567,3 +567,24 @@ def test_light_a_proposal_moves_from_dark_clipped_pixels_into_a_peak_is_not_kept
     proposal[62:67, 62:67] = np.where(peak, 1.0 + 8.0 * true_excess / peak.sum(), proposal[62:67, 62:67])
     kept, _, _ = make_consistent(frame, proposal, psf, noise=NOISE)
     assert float(np.where(clipped, kept - 1.0, 0.0).sum()) <= true_excess
+
+
+def test_a_white_lamp_keeps_its_colour_whatever_the_channels_evidence_says(model, monkeypatch):
+    """A white lamp proposed exactly whose evidence fit came out per channel as (0, 1, 1) - the demo's white lamps
+    were kept as (1, 29, 26), cyan cores: the cluster keeps one share, the mean of its channels', so its kept
+    excess has the proposal's colour."""
+    from hdrcam.recon import consistency
+
+    psf = np.asarray(model.psf, np.float32)
+    truth = np.full((128, 128, 3), 0.05, np.float32)
+    truth[61:68, 61:68] = 20.0
+    frame = capture(truth, psf)
+    clipped = frame >= CLIP_LEVEL
+    proposal = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
+    fitted = consistency._evidence_shares
+    monkeypatch.setattr(consistency, "_evidence_shares",
+                        lambda *arguments: (np.array([0.0, 1.0, 1.0], np.float32) * fitted(*arguments)[0],
+                                            fitted(*arguments)[1]))
+    kept, _, _ = consistency.make_consistent(frame, proposal, psf, noise=NOISE)
+    core = kept[62:67, 62:67].reshape(-1, 3).mean(axis=0) - 1.0
+    assert core.min() > 0.5 * core.max(), core  # red kept alongside green and blue, not left at the clip level

@@ -128,7 +128,7 @@ def test_a_cluster_the_streaks_confirm_in_one_network_keeps_that_networks_judged
 
 
 def test_strong_streaks_keep_a_networks_judged_lamp_though_one_channel_kept_a_small_share(psf, monkeypatch,
-                                                                                         cut_red_evidence_share):
+                                                                                         cut_evidence_share):
     """The streaks show the lamp beyond doubt (z >= STRONG_EVIDENCE_Z) but the evidence keeps less than
     STRONG_EVIDENCE_SHARE of one channel: the shape cap applies (not confirmed), yet the pair keeps the exact
     network's judged lamp - its light is the judgement's, already scaled by the share - not the white minimum
@@ -140,7 +140,7 @@ def test_strong_streaks_keep_a_networks_judged_lamp_though_one_channel_kept_a_sm
     clipped = frame >= CLIP_LEVEL
     exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
     white = np.where(clipped, 1.0, frame).astype(np.float32)
-    cut_red_evidence_share(monkeypatch)
+    cut_evidence_share(monkeypatch)
     judged_exact, confidence_exact, report_exact = consistency.make_consistent(frame, exact, psf,
                                                                                noise=consistency.NoiseModel())
     lamp = report_exact.strong_evidence
@@ -152,7 +152,7 @@ def test_strong_streaks_keep_a_networks_judged_lamp_though_one_channel_kept_a_sm
 
 @pytest.mark.parametrize("share_cut", [False, True])
 def test_strong_in_both_networks_the_cluster_holding_more_light_is_kept_whole(psf, monkeypatch, share_cut,
-                                                                              cut_red_evidence_share):
+                                                                              cut_evidence_share):
     """The other network proposes a tenth of the lamp's excess, or the lamp's light moved from its rim into its
     core: the streaks are strong evidence for both proposals, and the pair keeps the whole cluster from the one
     judgement that holds more light (never a per-pixel mixture, which the frame's upper bound need not allow),
@@ -162,7 +162,7 @@ def test_strong_in_both_networks_the_cluster_holding_more_light_is_kept_whole(ps
     from hdrcam.recon.network_agreement import judge_pair
 
     if share_cut:
-        cut_red_evidence_share(monkeypatch)
+        cut_evidence_share(monkeypatch)
     truth, frame = _captured_lamp(psf)
     clipped = frame >= CLIP_LEVEL
     exact = np.where(clipped, np.maximum(truth, 1.0), frame).astype(np.float32)
