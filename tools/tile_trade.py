@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -24,15 +25,18 @@ import hdrcam.evaluate.scoring as scoring
 from hdrcam import api
 from hdrcam.data import scenes
 from hdrcam.data.scenes import SceneSource
+from hdrcam.evaluate.metrics import HARM_DB
+from hdrcam.evaluate.report import paired_gains
 from hdrcam.train.checkpoint import load_model
+from one_line_errors import run  # tools/ is on sys.path when a tool runs
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("tile", help="largest window core in px, or 'full' (one window per crop)")
     parser.add_argument("sets", nargs="+", help="nightNNNN or trainNNNN")
     parser.add_argument("--out", type=Path, default=Path("tools/results/tile-trade"))
-    arguments = parser.parse_args()
+    arguments = parser.parse_args(argv)
     scoring.reconstruct = functools.partial(api.reconstruct, tile_px=1024, adaptive=False) \
         if arguments.tile == "full" else functools.partial(api.reconstruct, tile_px=int(arguments.tile))
     model = load_model()
@@ -43,19 +47,18 @@ def main() -> None:
         source, kwargs = (SceneSource("procedural"), dict(size_px=512, count=16)) if which.startswith("night") \
             else (SceneSource("runs/data/train"), dict(size_px=512, count=0))
         rows, _ = scoring.evaluate_models({"hdrcam": model}, source, examples=0, partner="auto", **kwargs)
-        by_image: dict[str, dict[str, float]] = {}
-        for row in rows:
-            by_image.setdefault(row.image, {})[row.method] = row.metrics["psnr_linear"]
-        gains = {image: {method: value - methods["ldr"] for method, value in methods.items()}
-                 for image, methods in by_image.items()}
+        per_method = {method: dict(paired_gains(rows, method)) for method in ("hdrcam", "hdrcam-network",
+                                                                                "hdrcnn-blend")}
+        gains = {image: {method: values[image] for method, values in per_method.items()}
+                 for image in per_method["hdrcam"]}
         (arguments.out / f"tile{arguments.tile}-{which}.json").write_text(json.dumps(gains, indent=1))
-        full = np.array([g["hdrcam"] for g in gains.values()])
-        network = np.array([g["hdrcam-network"] for g in gains.values()])
-        worst = min(gains, key=lambda image: gains[image]["hdrcam"])
+        full, network = (np.array(list(per_method[method].values())) for method in ("hdrcam", "hdrcam-network"))
+        worst = min(per_method["hdrcam"], key=per_method["hdrcam"].get)
         print(f"tile {arguments.tile} {which}: mean {full.mean():+.3f} worst {full.min():+.2f} ({worst}) "
-              f"below-0.3 {(full < -0.3).sum()} network {network.mean():+.3f} [{time.perf_counter() - started:.0f} s]",
-              flush=True)
+              f"below-{HARM_DB} {(full < -HARM_DB).sum()} network {network.mean():+.3f} "
+              f"[{time.perf_counter() - started:.0f} s]", flush=True)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(run(main))

@@ -31,6 +31,7 @@ from hdrcam.colorimetry import REC709_CHROMATICITIES, normalised_primary_matrix,
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
+from hdrcam.io.file_magic import starts_with
 from hdrcam.limits import check_image_size, check_memory
 from hdrcam.parallel import worker_threads
 
@@ -168,8 +169,7 @@ _quieting = threading.Lock()  # sys.stdout is the process's: one reader at a tim
 
 def is_exr_file(path: Path) -> bool:
     """True for a file that begins with OpenEXR's magic number, whatever its name."""
-    with open(path, "rb") as handle:
-        return handle.read(4) == EXR_MAGIC
+    return starts_with(path, EXR_MAGIC)
 
 
 @contextlib.contextmanager

@@ -29,6 +29,7 @@ from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
+from hdrcam.io.file_magic import starts_with
 from hdrcam.io.png import declared_nonlinear_encoding
 from hdrcam.io.radiance import is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
@@ -62,7 +63,7 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         rgb, orientation = image.rgb(), exr_orientation(image.attributes)
     elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
         rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)
-    elif suffix in GAMMA_SUFFIXES or _starts_with(path, JPEG_MAGIC):
+    elif suffix in GAMMA_SUFFIXES or starts_with(path, JPEG_MAGIC):
         raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
                          "16-bit TIFF/PNG")
     elif suffix in IMAGE_SUFFIXES:
@@ -87,11 +88,6 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
                          "capture (give the camera frame, not an HDR image)")
     return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
-
-
-def _starts_with(path: Path, magic: bytes) -> bool:
-    with open(path, "rb") as handle:
-        return handle.read(len(magic)) == magic
 
 
 def _rgb_samples(path: Path, suffix: str) -> np.ndarray:

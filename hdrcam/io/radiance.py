@@ -26,6 +26,7 @@ import numpy as np
 from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
+from hdrcam.io.file_magic import starts_with
 from hdrcam.limits import check_image_size
 
 RADIANCE_MAGIC = b"#?"
@@ -38,8 +39,7 @@ MAX_HEADER_BYTES = 1 << 16  # a header is a few lines; a file without an end to 
 
 def is_radiance_file(path: Path) -> bool:
     """True for a file that begins with Radiance's magic ``#?``."""
-    with open(path, "rb") as handle:
-        return handle.read(2) == RADIANCE_MAGIC
+    return starts_with(path, RADIANCE_MAGIC)
 
 
 def read_radiance(path: Path) -> np.ndarray:
