@@ -10,10 +10,11 @@
 - EXR: linear RGB taken as is (1.0 = white).
 - Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance).
 - 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
-  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs and PNGs whose colour chunks
-  declare a non-linear transfer (sRGB, a gAMA other than 1, a cICP transfer other than linear, an ICC profile)
-  are refused (gamma-encoded, or not known to be linear); a 16-bit TIFF's ICC profile is not read. A file that
-  starts like an EXR, a Radiance file or a JPEG is taken as one whatever its name.
+  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs, PNGs whose colour chunks declare
+  a non-linear transfer (sRGB, a gAMA other than 1, a cICP transfer other than linear) and TIFFs and PNGs whose
+  ICC profile's tone curves are not the identity (hdrcam.io.icc_profile: gamma, tables, LUT-based or damaged
+  profiles) are refused (gamma-encoded, or not known to be linear). A file that starts like an EXR, a Radiance
+  file or a JPEG is taken as one whatever its name.
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
 """
 
@@ -34,7 +35,7 @@ from hdrcam.io.png import declared_nonlinear_encoding
 from hdrcam.io.radiance import is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
-from hdrcam.io.tiff_image import read_tiff_rgb
+from hdrcam.io.tiff_image import read_tiff_rgb, tiff_nonlinear_encoding
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
@@ -92,12 +93,14 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
 
 def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
     """A TIFF's or PNG's H x W x 3 samples in R, G, B order and their stored type (extra samples dropped)."""
+    encoding = declared_nonlinear_encoding(path) if suffix == ".png" else tiff_nonlinear_encoding(path)
+    if encoding:
+        kind = "PNG" if suffix == ".png" else "TIFF"
+        raise InputError(f"{path}: the {kind} declares {encoding}: hdrcam reads linear values only (these are "
+                         "gamma-encoded, or not known to be linear); give a linear 16-bit TIFF/PNG, an EXR or the RAW "
+                         "file")
     if suffix != ".png":
         return read_tiff_rgb(path)
-    encoding = declared_nonlinear_encoding(path)
-    if encoding:
-        raise InputError(f"{path}: the PNG declares {encoding}: its values are gamma-encoded, not linear; give a "
-                         "linear 16-bit TIFF/PNG, an EXR or the RAW file")
     with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 3 or image.shape[2] < 3:

@@ -4,12 +4,14 @@ curve a PNG input declares in its colour chunks."""
 from __future__ import annotations
 
 import struct
+import zlib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from hdrcam.io.atomic import write_bytes_atomic
+from hdrcam.io.icc_profile import tone_curve_encoding
 
 
 def write_png(path: Path, image: np.ndarray, *, overwrite: bool = False) -> Path:
@@ -38,9 +40,10 @@ PNG_CICP_LINEAR = 8  # cICP transfer characteristics (ITU-T H.273): 8 is linear
 def declared_nonlinear_encoding(path: Path) -> str | None:
     """What a PNG's colour chunks (those before its image data) say of a non-linear encoding, by the PNG
     specification's precedence (cICP over iCCP over sRGB over gAMA): a cICP transfer other than linear, an ICC
-    profile (its curve is not read: refused as not known to be linear), an sRGB chunk, a gAMA other than 1.0 -
-    or None (no such chunk, a linear one, not a PNG). 16-bit PNGs from photo editors and RAW converters carry
-    these. Chunk lengths are not trusted: only the small colour chunks are read, the others skipped."""
+    profile whose tone curves are not the identity (hdrcam.io.icc_profile), an sRGB chunk, a gAMA other than 1.0
+    - or None (no such chunk, a linear one, not a PNG). 16-bit PNGs from photo editors and RAW converters carry
+    these. Chunk lengths are not trusted: only the colour chunks are read (an ICC profile up to ICC_MAX_BYTES,
+    compressed or not), the others skipped."""
     said: dict[bytes, str | None] = {}
     with open(path, "rb") as file:
         if file.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
@@ -49,12 +52,12 @@ def declared_nonlinear_encoding(path: Path) -> str | None:
             length, kind = struct.unpack(">I4s", header)
             if kind in (b"IDAT", b"IEND"):
                 break
-            if kind in (b"cICP", b"sRGB", b"gAMA") and length <= COLOUR_CHUNK_MAX_BYTES:
+            if (kind in (b"cICP", b"sRGB", b"gAMA") and length <= COLOUR_CHUNK_MAX_BYTES) or \
+                    (kind == b"iCCP" and length <= ICC_MAX_BYTES):
                 said.setdefault(kind, _nonlinear(kind, file.read(length)))
                 file.seek(4, 1)  # the chunk's CRC
             else:
-                said.setdefault(kind, "an ICC profile (iCCP) whose curve hdrcam does not read" if kind == b"iCCP"
-                                else None)
+                said.setdefault(kind, "an ICC profile (iCCP) larger than hdrcam reads" if kind == b"iCCP" else None)
                 file.seek(length + 4, 1)
     for kind in (b"cICP", b"iCCP", b"sRGB", b"gAMA"):
         if kind in said:
@@ -63,6 +66,8 @@ def declared_nonlinear_encoding(path: Path) -> str | None:
 
 
 COLOUR_CHUNK_MAX_BYTES = 16  # cICP holds 4 bytes, gAMA 4, sRGB 1
+ICC_MAX_BYTES = 1 << 22  # an ICC profile, compressed or not: a matrix/TRC profile takes a few kB, LUT-based ones
+# up to a few hundred
 
 
 def _nonlinear(kind: bytes, body: bytes) -> str | None:
@@ -75,4 +80,19 @@ def _nonlinear(kind: bytes, body: bytes) -> str | None:
             return f"gAMA {value / PNG_LINEAR_GAMMA:.5g} (encoding exponent {PNG_LINEAR_GAMMA / value:.3g})"
     if kind == b"cICP" and len(body) >= 2 and body[1] != PNG_CICP_LINEAR:
         return f"cICP transfer {body[1]}"
+    if kind == b"iCCP":
+        what = tone_curve_encoding(_iccp_profile(body))
+        return f"an ICC profile (iCCP: {what})" if what else None
     return None
+
+
+def _iccp_profile(body: bytes) -> bytes:
+    """The ICC profile of an iCCP chunk (a name, a zero byte, compression method 0, the zlib stream), inflated to
+    at most ICC_MAX_BYTES; b"" when the chunk is damaged (read as a damaged profile)."""
+    name_end = body.find(b"\0")
+    if name_end < 1 or len(body) < name_end + 2 or body[name_end + 1] != 0:
+        return b""
+    try:
+        return zlib.decompressobj().decompress(body[name_end + 2:], ICC_MAX_BYTES)
+    except zlib.error:
+        return b""

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.io.icc_profile import tone_curve_encoding
 from hdrcam.limits import check_image_size
 
 COLOUR_PHOTOMETRICS = ("RGB", "MINISBLACK", "MINISWHITE")  # RGB, or one sample (grey) refused by its callers
@@ -47,6 +48,27 @@ def read_tiff_samples(path: Path) -> np.ndarray:
     if axes.startswith("S") and samples.ndim == 3:  # planar: one plane per sample
         samples = np.moveaxis(samples, 0, -1)
     return samples
+
+
+ICC_PROFILE_TAG = 34675  # InterColorProfile (TIFF/EP, TIFF 6 technical note)
+
+
+def tiff_nonlinear_encoding(path: Path) -> str | None:
+    """What the first image's ICC profile says of a non-linear encoding ("an ICC profile (gamma 2.2)", from
+    hdrcam.io.icc_profile), or None: no profile, or one whose tone curves are the identity (linear values).
+    A file tifffile cannot open is left to :func:`read_tiff_samples` to name."""
+    import tifffile
+
+    try:
+        with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
+            tag = tiff.pages[0].tags.get(ICC_PROFILE_TAG)
+            profile = bytes(tag.value) if tag is not None else None
+    except Exception:  # noqa: BLE001 - read_tiff_samples names what is wrong with the file
+        return None
+    if profile is None:
+        return None
+    what = tone_curve_encoding(profile)
+    return f"an ICC profile ({what})" if what else None
 
 
 def read_tiff_rgb(path: Path) -> np.ndarray:

@@ -13,6 +13,7 @@ from hdrcam.data.hdr_folder import read_hdr_image
 from hdrcam.errors import InputError
 from hdrcam.io.exr import write_exr
 from hdrcam.io.ldr_frame import read_ldr_frame
+from tests.io.icc_profiles import SRGB_PARAMETERS, curv, para, profile, rgb_curves
 
 
 def _gradient() -> np.ndarray:
@@ -119,6 +120,12 @@ def _png_chunk(kind: bytes, body: bytes) -> bytes:
     return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
 
 
+def _iccp(icc: bytes) -> bytes:
+    import zlib
+
+    return b"working space\x00\x00" + zlib.compress(icc)
+
+
 def _png16_with_chunks(path, chunks: list[bytes]):
     """A 16-bit RGB PNG with ``chunks`` after its IHDR (where photo editors put sRGB and gAMA)."""
     image = (np.linspace(0, 65535, 48 * 64 * 3) % 65536).astype(np.uint16).reshape(48, 64, 3)
@@ -136,7 +143,7 @@ def test_a_png_that_declares_itself_gamma_encoded_is_refused(tmp_path, chunks, s
     """A 16-bit PNG from a photo editor (sRGB or gAMA 1/2.2 chunk) was read as linear with no word: a frame 2.6 x
     too bright in the mean, more pixels counted as clipped."""
     path = _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(kind, body) for kind, body in chunks])
-    with pytest.raises(InputError, match=f"frame.png: the PNG declares {said}.*gamma-encoded"):
+    with pytest.raises(InputError, match=f"frame.png: the PNG declares {said}.*: hdrcam reads linear values only"):
         read_ldr_frame(path)
 
 
@@ -166,12 +173,13 @@ def test_a_jpeg_is_refused_as_one_whatever_its_name(tmp_path):
 
 
 @pytest.mark.parametrize("chunks, refused", [
-    ([(b"iCCP", b"sRGB profile\x00\x00" + bytes(20))], "an ICC profile"),  # a curve not read: not known linear
+    ([(b"iCCP", b"sRGB profile\x00\x00" + bytes(20))], "an ICC profile"),  # damaged: not known to be linear
+    ([(b"iCCP", _iccp(rgb_curves(curv()))), (b"sRGB", b"\x00")], None),  # a linear ICC profile over sRGB
     ([(b"cICP", bytes([1, 8, 0, 1])), (b"sRGB", b"\x00")], None),  # cICP takes precedence: linear
     ([(b"gAMA", (100000).to_bytes(4, "big")), (b"sRGB", b"\x00")], "an sRGB chunk"),  # sRGB over gAMA
 ])
 def test_png_colour_chunks_are_read_by_the_specifications_precedence(tmp_path, chunks, refused):
-    """The first colour chunk decided, and an ICC profile alone read as linear; cICP > iCCP > sRGB > gAMA."""
+    """The first colour chunk decides; cICP > iCCP > sRGB > gAMA."""
     path = _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(kind, body) for kind, body in chunks])
     if refused is None:
         assert read_ldr_frame(path).shape == (48, 64, 3)
@@ -195,3 +203,27 @@ def test_a_png_chunk_that_claims_gigabytes_is_skipped_not_read(tmp_path):
             read_ldr_frame(tmp_path / "frame.png")
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+@pytest.mark.parametrize("icc, said", [(rgb_curves(para(3, *SRGB_PARAMETERS)), "gamma 2.4, piecewise"),
+                                       (rgb_curves(curv(gamma=1.8)), "gamma 1.8"),
+                                       (profile({b"A2B0": b"mft2" + bytes(100)}), "no tone curves"),
+                                       (rgb_curves(curv()), None)])
+def test_a_tiff_or_png_whose_icc_profile_encodes_its_values_is_refused_a_linear_one_read(tmp_path, icc, said):
+    """16-bit TIFFs from RAW converters embed their output profile (sRGB, ProPhoto's gamma 1.8): the TIFF's was not
+    read, so such a frame was taken as linear with no word (mid-grey 0.5 read as 0.5 for 0.21), and a PNG's ICC
+    profile was refused even when its curves are the identity (a converter's linear output)."""
+    import tifffile
+
+    counts = (np.arange(48 * 64 * 3) * 13 % 65536).astype(np.uint16).reshape(48, 64, 3)
+    tifffile.imwrite(tmp_path / "frame.tif", counts, photometric="rgb", extratags=[(34675, 7, len(icc), icc, True)])
+    _png16_with_chunks(tmp_path / "frame.png", [_png_chunk(b"iCCP", _iccp(icc))])
+    for name, declared in (("frame.tif", f"the TIFF declares an ICC profile \\({said}"),
+                           ("frame.png", f"the PNG declares an ICC profile \\(iCCP: {said}")):
+        if said is None:
+            assert read_ldr_frame(tmp_path / name).shape == (48, 64, 3)
+        else:
+            with pytest.raises(InputError, match=f"{name}: {declared}"):
+                read_ldr_frame(tmp_path / name)
+    if said is None:
+        np.testing.assert_allclose(read_ldr_frame(tmp_path / "frame.tif"), counts / 65535.0, atol=1e-7)
