@@ -19,6 +19,7 @@ frame is one region.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 
@@ -225,7 +226,7 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
     blend = _blend(core_px, halo_px)
     hdr = frame.copy()
     if regions:
-        forward = hdr_forward(network.to(device=device, dtype=dtype).eval(), device, dtype)
+        forward = hdr_forward(_on(network, device, dtype).eval(), device, dtype)
     for region in regions:
         output = _run_region(forward, frame, region, halo_px, blend, device, dtype, progress)
         fade = np.outer(_fade(region.height, region.top, height, blend),
@@ -236,6 +237,16 @@ def reconstruct_frame(network: ReconstructionNet, ldr: np.ndarray, *, psf_radius
                            sum(_window_pixels(region, halo_px) for region in regions),
                            _window_pixels(full_frame, halo_px), int(clipped_mask(frame).sum()),
                            time.perf_counter() - started)
+
+
+def _on(network, device: torch.device, dtype: torch.dtype):
+    """``network`` on ``device`` in ``dtype``: itself when it is there already, else a copy - ``Module.to``
+    converts in place, so a bfloat16 run rounded the caller's float32 weights for good (the same frame's next
+    float32 reconstruction then differed by up to 2.1) and a CUDA run left the model on the GPU."""
+    parameter = next(network.parameters(), None) if isinstance(network, torch.nn.Module) else None
+    if parameter is None or (parameter.device == torch.device(device) and parameter.dtype == dtype):
+        return network.to(device=device, dtype=dtype)
+    return copy.deepcopy(network).to(device=device, dtype=dtype)
 
 
 def _window_pixels(region: Region, halo_px: int) -> int:

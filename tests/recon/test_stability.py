@@ -44,3 +44,15 @@ def test_capture_of_radiance_far_beyond_two_to_the_eight_clips_cleanly(model):
     scene[60:63, 60:63] = 1e6  # 1e8 : 1 against the background
     frame = capture_scene(scene, model.psf, load_profile(model.profile), seed=0)
     assert np.isfinite(frame).all() and frame.max() == 1.0 and frame.min() >= 0.0
+
+
+def test_a_run_in_another_precision_leaves_the_callers_network_as_it_was():
+    """Module.to converts in place: a bfloat16 reconstruction rounded the caller's float32 weights for good (the
+    same frame's next float32 reconstruction differed by up to 2.1)."""
+    network = load_model().network
+    weights = {name: value.clone() for name, value in network.state_dict().items()}
+    frame = np.full((48, 48, 3), 0.2, np.float32)
+    frame[20:26, 20:26] = 1.0
+    reconstruct_frame(network, frame, psf_radius_px=8, adaptive=False, dtype=torch.bfloat16)
+    for name, value in network.state_dict().items():
+        assert value.dtype == weights[name].dtype and torch.equal(value, weights[name]), name
