@@ -588,3 +588,60 @@ def test_a_white_lamp_keeps_its_colour_whatever_the_channels_evidence_says(model
     kept, _, _ = consistency.make_consistent(frame, proposal, psf, noise=NOISE)
     core = kept[62:67, 62:67].reshape(-1, 3).mean(axis=0) - 1.0
     assert core.min() > 0.5 * core.max(), core  # red kept alongside green and blue, not left at the clip level
+
+
+def test_a_light_clipped_in_one_channel_keeps_only_what_that_channels_evidence_supports(model):
+    """A red light 1.3 x white, clipped in red alone, proposed at 5: its streaks are far below the noise (red share
+    0), but green and blue, with no excess to fit, counted as share 1 in the cluster's mean - red kept 2/3 of the
+    bounded proposal, 2.88 against the frame's 1.0 and the truth 1.3 (worse than the frame)."""
+    from hdrcam.recon.consistency import make_consistent
+
+    psf = np.asarray(model.psf, np.float32)
+    truth = np.full((96, 96, 3), 0.2, np.float32)
+    truth[46:49, 46:49, 0] = 1.3
+    frame = capture(truth, psf, seed=1)
+    clipped = frame >= CLIP_LEVEL
+    assert clipped[..., 0].any() and not clipped[..., 1:].any()
+    proposal = frame.copy()
+    proposal[..., 0] = np.where(clipped[..., 0], 5.0, frame[..., 0])
+    kept, _, _ = make_consistent(frame, proposal, psf, noise=NOISE)
+    spot = clipped[..., 0]
+    assert squared_error(kept[..., 0], truth[..., 0], spot) <= squared_error(frame[..., 0], truth[..., 0], spot) + \
+        WHITE_NOISE_MSE
+
+
+@pytest.mark.parametrize("size_px", [5, 7, 9])
+def test_a_highlight_whose_evidence_ring_is_empty_keeps_the_frame(model, size_px):
+    """A frame so small that every unclipped pixel lies within EVIDENCE_INNER_PX of the light: no pixel could
+    show its streaks, yet an empty ring read as 'nothing proposed' (share 1) and a proposal of 200 was kept at
+    10.1 for a light twice white."""
+    from hdrcam.recon.consistency import make_consistent
+
+    psf = np.asarray(model.psf, np.float32)
+    truth = np.full((size_px, size_px, 3), 0.2, np.float32)
+    truth[size_px // 2, size_px // 2] = 2.0
+    frame = capture(truth, psf)
+    clipped = frame.max(axis=-1) >= CLIP_LEVEL
+    assert clipped.any()
+    kept, confidence, _ = make_consistent(frame, np.where(clipped[..., None], 200.0, frame).astype(np.float32), psf,
+                                          noise=NOISE)
+    np.testing.assert_allclose(kept[clipped], 1.0, atol=1e-6)
+    assert np.all(confidence[clipped] == 0.0)
+
+
+@pytest.mark.parametrize("psf_px", [7, 63])
+def test_a_dirac_psf_sends_no_light_to_witness_so_a_proposal_falls_back(psf_px):
+    """A user's --psf that is a delta: no unclipped pixel can see a highlight, but the FFT's round-off (1e-7 of
+    the peak) counted thousands of witnesses and was fitted as evidence - a proposal of 200 kept at 67-200."""
+    from hdrcam.recon.consistency import make_consistent
+
+    psf = np.zeros((3, psf_px, psf_px), np.float32)
+    psf[:, psf_px // 2, psf_px // 2] = 1.0
+    rng = np.random.default_rng(3)
+    truth = (0.2 + 0.4 * rng.random((96, 96, 1)) * np.ones(3)).astype(np.float32)
+    truth[40:44, 50:54] = 2.0
+    frame = capture(truth, psf)
+    clipped = frame.max(axis=-1) >= CLIP_LEVEL
+    kept, _, _ = make_consistent(frame, np.where(clipped[..., None], 200.0, frame).astype(np.float32), psf,
+                                 noise=NOISE)
+    np.testing.assert_allclose(kept[clipped], 1.0, atol=1e-6)
