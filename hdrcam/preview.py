@@ -34,6 +34,8 @@ def side_by_side(images: list[np.ndarray], height_px: int = 512, gap_px: int = 8
     return np.concatenate(panels[:-1], axis=1)
 
 
+SCALED_LUMINANCE_CAP = np.float32(1e30)  # shown as white (x / (1 + x) = 1 in float32); beyond float32's range
+# the product overflowed to inf, inf / (1 + inf) is NaN, and a pixel of 1e38 on a dim background showed black
 STRIP_ROWS = 256  # previews are computed a strip of rows at a time: memory stays small at 24 MP
 REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
 SRGB_TABLE_CELLS = 2 ** 16  # display values [0, 1] are sRGB-encoded by looking up which of this many equal cells
@@ -101,7 +103,9 @@ def tonemap_rgb(hdr_rgb: np.ndarray, key: float = 0.18, log_average: float | Non
     def map_strip(rows: slice) -> None:
         rgb = _finite_rgb(hdr_rgb[rows])
         luminance = luminance_of(rgb)
-        scaled = luminance * np.float32(key / log_average)
+        factor = np.float32(key / log_average)
+        with np.errstate(over="ignore"):  # the cap over a tiny factor may be inf: no luminance is capped then
+            scaled = np.minimum(luminance, SCALED_LUMINANCE_CAP / factor) * factor
         display_gain = scaled / (1.0 + scaled) / np.maximum(luminance, 1e-12)  # display value per linear unit
         cell = np.minimum(rgb * (display_gain * np.float32(SRGB_TABLE_CELLS))[..., None], SRGB_TABLE_CELLS - 1)
         preview[rows] = SRGB_CODES.take(cell.astype(np.uint16))  # the cell index: display value x cells, truncated

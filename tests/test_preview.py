@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from hdrcam.preview import reduced_for_preview, tonemap_rgb
@@ -71,3 +73,14 @@ def test_tonemap_treats_nan_infinite_and_negative_samples_as_zero_and_leaves_its
 
 def test_an_empty_image_tonemaps_to_an_empty_preview():
     assert tonemap_rgb(np.zeros((10, 0, 3), np.float32), log_average=1.0).shape == (10, 0, 3)
+
+
+def test_a_pixel_beyond_float32s_scaled_range_shows_white_not_black():
+    """luminance x key / log-average overflowed float32 to inf, and inf / (1 + inf) is NaN: a 1e38 pixel on a
+    dim background was drawn black."""
+    image = np.full((8, 8, 3), 1e-3, np.float32)
+    image[4, 4] = 1e38
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        preview = tonemap_rgb(image)
+    assert preview[4, 4].tolist() == [255, 255, 255]

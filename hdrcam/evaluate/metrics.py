@@ -25,8 +25,13 @@ _PU21_RANGE_CD = (0.005, 10000.0)
 
 
 def psnr(estimate: np.ndarray, truth: np.ndarray, peak: float) -> float:
-    """10 log10(peak^2 / MSE) in dB over all pixels and channels, capped at PSNR_CAP_DB."""
-    error = np.asarray(estimate, np.float64) - np.asarray(truth, np.float64)
+    """10 log10(peak^2 / MSE) in dB over all pixels and channels, capped at PSNR_CAP_DB; images of different
+    shapes, or empty ones, are a ValueError (numpy would broadcast a 1 x 1 truth over any estimate)."""
+    estimate, truth = np.asarray(estimate, np.float64), np.asarray(truth, np.float64)
+    if estimate.shape != truth.shape or not truth.size:
+        raise ValueError(f"PSNR of images of shapes {estimate.shape} and {truth.shape}: they must be equal and "
+                         "not empty")
+    error = estimate - truth
     mse = float(np.mean(error * error))
     if not math.isfinite(mse):
         raise ValueError("PSNR of an image with NaN or Inf values")

@@ -86,3 +86,12 @@ def test_the_summary_compares_a_method_only_on_the_images_it_shares_with_the_ref
     summary = summary_markdown(rows, "test")
     assert "| mine | 50.50 | +1.00 | +1.00 | 0 |" in summary  # c has no reference: not a gain of +25
     assert "Worst image per method: mine: a." in summary
+
+
+@pytest.mark.parametrize("metric", [psnr_linear, pu21_psnr, psnr_mu])
+def test_images_of_different_shapes_or_empty_ones_are_refused_not_broadcast(metric):
+    """numpy broadcast a 1 x 1 truth over a 64 x 64 estimate (46.9 dB), and empty images read as NaN ones."""
+    with pytest.raises(ValueError, match="shapes"):
+        metric(np.ones((64, 64, 3)), np.ones((1, 1, 3)))
+    with pytest.raises(ValueError, match="shapes"):
+        metric(np.ones((0, 4, 3)), np.ones((0, 4, 3)))
