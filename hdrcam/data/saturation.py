@@ -28,7 +28,7 @@ def fraction_shortfall(reached: float, asked: float, pixels: int) -> str | None:
     if asked / 2 <= reached <= 2 * asked:
         return None
     why = (f"{100 * asked:g} % of {pixels} pixels is less than one" if asked * pixels < 1 else
-           "a plateau at its brightest: saturated at source, or uniform")
+           "a plateau at its brightest - saturated at source, or uniform - or about as few lit pixels as asked")
     return f"{100 * reached:.3g} % of its pixels exceed 1, not the {100 * asked:g} % asked ({why})"
 
 
@@ -38,8 +38,14 @@ def saturation_scale(radiance: np.ndarray, fraction: float) -> float:
         raise ValueError(f"clipped fraction must lie in (0, 1), got {fraction}")
     brightest = np.max(radiance, axis=-1)
     level = float(np.quantile(brightest, 1.0 - fraction, method="higher"))
-    if not level > 0.0 or not np.isfinite(level):
-        raise InputError("image has no light to scale (its bright pixels are zero); it cannot be saturated")
+    if not np.isfinite(level):
+        raise InputError("image has no light to scale (its bright pixels are not finite); it cannot be saturated")
+    if not level > 0.0:
+        lit = int(np.count_nonzero(brightest > 0.0))
+        if not lit:
+            raise InputError("image has no light to scale (every pixel is zero); it cannot be saturated")
+        raise InputError(f"only {lit} of {brightest.size} pixels hold light ({100 * lit / brightest.size:.3g} %), "
+                         f"fewer than the {100 * fraction:g} % asked to exceed white: ask for a smaller fraction")
     return level
 
 

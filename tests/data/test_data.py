@@ -297,3 +297,18 @@ def test_a_photograph_smaller_than_the_test_crop_is_warned_about(tmp_path):
     _lamps(tmp_path, height=80, width=120)
     with pytest.warns(UserWarning, match=r"p0.exr: 120 x 80 px, smaller than the 96 px test crop: mirrored"):
         SceneSource(str(tmp_path)).test_scenes(96, 8, 0)
+
+
+def test_a_point_of_light_on_black_is_refused_with_how_many_pixels_hold_light():
+    """A single lit pixel asked to leave 1.5 % of the pixels above white: the quantile is 0 and the error said
+    the image had no light."""
+    from hdrcam.data.saturation import saturation_scale
+    from hdrcam.errors import InputError
+
+    scene = np.zeros((100, 100, 3), np.float32)
+    scene[50, 50] = 1e9
+    with pytest.raises(InputError, match=r"only 1 of 10000 pixels hold light \(0.01 %\), fewer than the 1.5 % asked"):
+        saturation_scale(scene, 0.015)
+    assert saturation_scale(scene, 5e-5) == pytest.approx(1e9)
+    with pytest.raises(InputError, match="every pixel is zero"):
+        saturation_scale(np.zeros((4, 4, 3), np.float32), 0.015)
