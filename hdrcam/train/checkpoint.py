@@ -92,6 +92,17 @@ class TrainedModel:
     fixed_psf: str | None = None  # the fixed PSF it was trained behind (dirac, windshield, a file), None for a DOE
 
 
+def load_network_weights(network: ReconstructionNet, weights: dict, source: Path | str) -> None:
+    """``weights`` (a checkpoint's "network" state) into ``network``; a one-line InputError naming ``source``
+    when they do not match its preset (keys missing or unknown: another preset or hdrcam version). The VGG
+    features, loaded from their own file and not saved, may be absent."""
+    missing, unexpected = network.load_state_dict(weights, strict=False)
+    missing = [key for key in missing if not key.startswith("splitting.vgg.")]
+    if missing or unexpected:
+        raise InputError(f"{source}: network weights do not match preset {network.preset.name!r} ({len(missing)} "
+                         f"missing, {len(unexpected)} unknown: another preset or hdrcam version)")
+
+
 def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
                random_vgg: bool = False) -> TrainedModel:
     """The network of checkpoint ``path`` (default: the shipped one) in eval mode on the CPU."""
@@ -100,10 +111,7 @@ def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,
     preset = preset_named(state["preset"])
     vgg = vgg_for_preset(preset, vgg_weights, random_features=random_vgg)
     network = ReconstructionNet(preset, vgg)
-    missing, unexpected = network.load_state_dict(state["network"], strict=False)
-    missing = [key for key in missing if not key.startswith("splitting.vgg.")]
-    if missing or unexpected:
-        raise InputError(f"{path}: network weights do not match preset {preset.name!r}")
+    load_network_weights(network, state["network"], path)
     tensors = [state["psf"], *(weights for weights in state["network"].values()
                                if torch.is_tensor(weights) and weights.is_floating_point())]
     if not all(bool(torch.isfinite(tensor).all()) for tensor in tensors):

@@ -50,7 +50,7 @@ from hdrcam.recon.network import Reconstruction, ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
 from hdrcam.recon.vgg import vgg_for_preset
 from hdrcam.train.batches import BatchStream
-from hdrcam.train.checkpoint import read_checkpoint, recorded_checkpoint, save_checkpoint
+from hdrcam.train.checkpoint import load_network_weights, read_checkpoint, recorded_checkpoint, save_checkpoint
 from hdrcam.train.choices import FIXED_PSFS
 from hdrcam.train.run_options import moved_file, same_file
 from hdrcam.train.config import TrainConfig
@@ -98,7 +98,7 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool,
         state = read_checkpoint(recorded_checkpoint(config.init_checkpoint))
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
-        network.load_state_dict(state["network"], strict=False)
+        load_network_weights(network, state["network"], config.init_checkpoint)
     return DesignModel(capture, network, precision=config.precision, channels_last=config.channels_last)
 
 
@@ -173,7 +173,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         if model.capture.simulator is None and not _same_psf(model.capture.fixed.detach().cpu(), saved["psf"]):
             raise InputError(f"--psf {config.psf}: not the PSF {out.name} trained behind so far (the file changed "
                              "since); resume needs the same PSF")
-        model.network.load_state_dict(saved["network"], strict=False)
+        load_network_weights(model.network, saved["network"], out / "checkpoint.pt")
         if saved["doe"] is not None:
             model.capture.simulator.heightmap.load_state_dict(saved["doe"]["parameters"])
         optimizer.load_state_dict(saved["optimizer"])

@@ -295,3 +295,18 @@ def test_a_checkpoint_saved_without_its_config_still_loads(tmp_path):
     del state["config"]
     save_checkpoint(tmp_path / "bare.pt", state)
     assert load_model(tmp_path / "bare.pt").fixed_psf is None  # KeyError: 'config', exit 3
+
+
+def test_an_init_checkpoint_whose_weights_do_not_match_the_network_is_refused(tmp_path):
+    """finetune --checkpoint and design --init loaded with strict=False: a checkpoint of another hdrcam version
+    (88 highlight layers renamed) trained those layers from random weights, exit 0, where reconstruct refuses it."""
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, save_checkpoint
+    from hdrcam.train.design import build_model
+
+    state = read_checkpoint(SHIPPED_CHECKPOINT)
+    state["network"] = {("old_" + key if key.startswith("highlight.") else key): value
+                        for key, value in state["network"].items()}
+    state.pop("format", None)
+    save_checkpoint(tmp_path / "renamed.pt", state)
+    with pytest.raises(InputError, match=r"renamed.pt: network weights do not match preset 'fast' \(\d+ missing"):
+        build_model(_tiny(doe=None, psf="dirac", init_checkpoint=str(tmp_path / "renamed.pt")), None, True)
