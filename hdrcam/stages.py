@@ -14,7 +14,6 @@ imported before a function runs (torch only for design, finetune and evaluate).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -240,6 +239,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     :func:`finetuned_partner` names the partner written."""
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
+    from hdrcam.train.config import read_run_config
     from hdrcam.train.design import RUN_FILES
 
     out = Path(out)
@@ -279,7 +279,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
         return last
     new_partner_run = new_run  # unused when the partner's own run continues
     if partner_start is not None:  # the main run's own options (also when this call gave none: a resume)
-        trained = json.loads((out / "config.json").read_text())
+        trained = read_run_config(out / "config.json")
         new_partner_run = {**new_run, **{field: trained[field] for field in PARTNER_SHARES if field in trained},
                            "preset": partner_state["preset"], "profile": partner_state["profile"],
                            "init_checkpoint": str(partner_start),
@@ -313,11 +313,12 @@ def _saved_config(out: Path) -> dict | None:
     """The config the run in ``out`` saved with its checkpoint, else the config.json it wrote as it started (a run
     stopped before its first checkpoint), None before either."""
     from hdrcam.train.checkpoint import read_checkpoint
+    from hdrcam.train.config import read_run_config
 
     saved, claimed = out / "checkpoint.pt", out / "config.json"
     if saved.is_file():
         return read_checkpoint(saved)["config"]
-    return json.loads(claimed.read_text()) if claimed.is_file() else None
+    return read_run_config(claimed) if claimed.is_file() else None
 
 
 def _run_psf(out: Path) -> str:
@@ -415,7 +416,7 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
 
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import read_checkpoint
-    from hdrcam.train.config import TrainConfig
+    from hdrcam.train.config import TrainConfig, read_run_config
     from hdrcam.train.design import train
 
     if device == "cuda" and not torch.cuda.is_available():
@@ -423,9 +424,9 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
     checkpoint, claimed = Path(out) / "checkpoint.pt", Path(out) / "config.json"
     restart = resume and not checkpoint.is_file() and claimed.is_file()  # stopped before its first checkpoint:
     if restart:  # it starts again, with its own options
-        config, resume = TrainConfig.from_dict(json.loads(claimed.read_text())), False
+        config, resume = TrainConfig.from_dict(read_run_config(claimed), claimed), False
     elif resume and checkpoint.is_file():
-        config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"])
+        config = TrainConfig.from_dict(read_checkpoint(checkpoint)["config"], checkpoint)
     else:
         config = TrainConfig(**new_run)
     config = dataclasses.replace(config, **given)  # checks the given fields as a new config would

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 from hdrcam.errors import InputError
 from hdrcam.recon.losses import LossWeights
@@ -54,11 +56,34 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, document: dict) -> "TrainConfig":
+    def from_dict(cls, document: dict, source: Path | str = "the run's configuration") -> "TrainConfig":
+        """The configuration a run saved (fields a run saved before they existed take their defaults); a one-line
+        InputError naming ``source`` for settings this version does not know (a run of a newer hdrcam)."""
         values = dict(document)
-        values["weights"] = LossWeights(**values.get("weights", {}))
-        return cls(**values)  # fields a run saved before they existed take their defaults
+        known = {field.name for field in dataclasses.fields(cls)}
+        weights = values.get("weights", {})
+        unknown = sorted(set(values) - known) + (sorted(set(weights) - {field.name for field in
+                                                                         dataclasses.fields(LossWeights)})
+                                                  if isinstance(weights, dict) else ["weights"])
+        if unknown:
+            raise InputError(f"{source}: settings this hdrcam does not know ({', '.join(unknown)}): a run of another "
+                             "version? Resume it with that version, or start a new run")
+        values["weights"] = LossWeights(**weights)
+        return cls(**values)
 
     def learning_rate_at(self, step: int, base: float) -> float:
         """Polynomial decay: base (1 - step / steps)^power."""
         return base * max(0.0, 1.0 - step / self.steps) ** self.decay_power
+
+
+def read_run_config(path: Path) -> dict:
+    """A run folder's config.json; a one-line InputError naming it when it is damaged or not a run's."""
+    try:
+        document = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise InputError(f"{path}: not a readable run configuration ({type(error).__name__}: {error}); restore the "
+                         "run folder or start a new one") from None
+    if not isinstance(document, dict):
+        raise InputError(f"{path}: not a run configuration (a JSON {type(document).__name__}); restore the run folder "
+                         "or start a new one")
+    return document

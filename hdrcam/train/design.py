@@ -53,7 +53,7 @@ from hdrcam.train.batches import BatchStream
 from hdrcam.train.checkpoint import load_network_weights, read_checkpoint, recorded_checkpoint, save_checkpoint
 from hdrcam.train.choices import FIXED_PSFS
 from hdrcam.train.run_options import moved_file, same_file
-from hdrcam.train.config import TrainConfig
+from hdrcam.train.config import TrainConfig, read_run_config
 from hdrcam.train.optical_capture import OpticalCapture, fixed_psf
 
 
@@ -147,7 +147,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     check_destination_folder(out)  # before the model is built: an unusable --out fails at once
     if restart:  # the options it started with, as a resume from a checkpoint checks them (steps may change:
         # no step was saved, so no learning-rate schedule has begun; nor a PSF, so a PSF file may replace a gone one)
-        _check_same_run(out / "config.json", json.loads((out / "config.json").read_text()), config,
+        _check_same_run(out / "config.json", read_run_config(out / "config.json"), config,
                         psf_file_may_replace=True)
     saved = read_checkpoint(checkpoint_path) if resume else None
     if saved is not None:

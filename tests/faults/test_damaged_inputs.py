@@ -283,3 +283,23 @@ def test_a_closed_standard_output_is_exit_1_in_one_line(workspace, tmp_path, cap
     assert temporaries(tmp_path) == []
     monkeypatch.setattr(sys, "stdout", None)
     assert main(["--help"]) == 1
+
+
+@pytest.mark.parametrize("config, mention", [
+    ('{"preset": "fa', "not a readable run configuration"),  # cut short
+    ("", "not a readable run configuration"),
+    ("[1, 2]", "not a run configuration (a JSON list)"),
+    ('{"future_option": 1, "steps": 4, "psf": "psf.exr"}', "settings this hdrcam does not know (future_option)"),
+])
+@pytest.mark.parametrize("command", ["design", "finetune"])
+def test_a_damaged_or_foreign_run_configuration_is_exit_1_naming_it(command, config, mention, tmp_path, capsys,
+                                                                     monkeypatch):
+    """A run stopped before its first checkpoint holds config.json alone; damaged, or from a newer hdrcam, it gave
+    exit 3, 'internal error: JSONDecodeError ... (a bug; please report it)', without the file."""
+    run_folder = tmp_path / "run"
+    run_folder.mkdir()
+    (run_folder / "config.json").write_text(config)
+    (tmp_path / "psf.exr").write_bytes(b"")  # the PSF the foreign run names, where finetune looks for it first
+    monkeypatch.chdir(tmp_path)
+    assert_failed_with_one_line(run([command, "--out", run_folder, "--resume"], capsys), 1,
+                                f"{run_folder / 'config.json'}: {mention}")
