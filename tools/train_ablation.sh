@@ -15,7 +15,7 @@ declare -A options=([rank1]="--doe rank1" [freeform]="--doe freeform" [dirac]="-
 for name in ${names//,/ }; do
   [[ -f "$runs/$name/model.pt" ]] && continue
   resume=()
-  [[ -f "$runs/$name/checkpoint.pt" ]] && resume=(--resume)
+  [[ -f "$runs/$name/config.json" ]] && resume=(--resume)  # a run claimed, saved or not
   # shellcheck disable=SC2086
   "$hdrcam" design --preset fast --steps "$steps" --seed 0 --out "$runs/$name" "${resume[@]}" ${options[$name]}
 done

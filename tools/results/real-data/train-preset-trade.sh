@@ -7,7 +7,7 @@
 cd "$(dirname "$0")/../../.."  # the repository root
 for spec in fast:2000 lite:800; do
   preset=${spec%%:*}; steps=${spec#*:}; run=runs/preset-$preset
-  resume=""; [ -f $run/checkpoint.pt ] && resume="--resume"
+  resume=""; [ -f $run/config.json ] && resume="--resume"  # a run claimed, saved or not
   OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} .venv/bin/hdrcam design --preset $preset \
     --psf tools/results/shipped-rank1/psf.exr --data runs/data/train:0.6,procedural:0.3,../shared/data/hdr:0.1 \
     --steps $steps --batch 4 --crop 128 --lr 5e-4 --seed 0 --checkpoint-every 100 --out $run $resume || exit 1

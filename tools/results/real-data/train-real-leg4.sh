@@ -6,7 +6,7 @@ cd "$(dirname "$0")/../../.."  # the repository root
 start=runs/real-rank1-fast-6000.pt  # the shipped network (unchanged since commit 417f97e)
 [ -f $start ] || { mkdir -p runs && git show 417f97e:hdrcam/checkpoints/simulated-rank1-fast.pt > $start; }
 run=runs/real-rank1-fast-leg4
-resume=""; [ -f $run/checkpoint.pt ] && resume="--resume"
+resume=""; [ -f $run/config.json ] && resume="--resume"  # a run claimed, saved or not
 OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} exec .venv/bin/hdrcam finetune --checkpoint $start \
   --psf tools/results/shipped-rank1/psf.exr \
   --data runs/data/train:0.8,procedural:0.1,../shared/data/hdr:0.1 \

@@ -6,7 +6,7 @@ cd "$(dirname "$0")/../../.."  # the repository root
 start=runs/real-rank1-fast-256/model.pt  # made by train-real-leg3.sh
 [ -f $start ] || { echo "run tools/results/real-data/train-real-leg3.sh first ($start is missing)" >&2; exit 1; }
 run=runs/real-rank1-fast-leg5
-resume=""; [ -f $run/checkpoint.pt ] && resume="--resume"
+resume=""; [ -f $run/config.json ] && resume="--resume"  # a run claimed, saved or not
 OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} exec .venv/bin/hdrcam finetune --checkpoint $start \
   --psf tools/results/shipped-rank1/psf.exr \
   --data runs/data/train:0.8,procedural:0.1,../shared/data/hdr:0.1 \

@@ -5,7 +5,7 @@ cd "$(dirname "$0")/../../.."  # the repository root
 start=runs/procedural-rank1-fast.pt
 [ -f $start ] || { mkdir -p runs && git show 47c155e:hdrcam/checkpoints/simulated-rank1-fast.pt > $start; }
 run=runs/real-rank1-fast
-resume=""; [ -f $run/checkpoint.pt ] && resume="--resume"
+resume=""; [ -f $run/config.json ] && resume="--resume"  # a run claimed, saved or not
 OMP_NUM_THREADS=1 exec .venv/bin/hdrcam finetune --checkpoint $start \
   --psf tools/results/shipped-rank1/psf.exr \
   --data runs/data/train:0.6,procedural:0.3,../shared/data/hdr:0.1 \

@@ -28,7 +28,7 @@ for name in ${names//,/ }; do
     psf=$runs/$name-psf/psf.exr
   fi
   [ -f $runs/$name/model.pt ] && continue
-  resume=(); [ -f $runs/$name/checkpoint.pt ] && resume=(--resume)
+  resume=(); [ -f $runs/$name/config.json ] && resume=(--resume)  # a run claimed, saved or not
   .venv/bin/hdrcam design --profile $profile --psf "$psf" --init $start --preset fast \
     --data runs/data/train:0.6,procedural:0.3,../shared/data/hdr:0.1 \
     --steps "$steps" --batch 4 --crop 128 --lr 2e-4 --seed 0 --checkpoint-every 100 --out $runs/$name "${resume[@]}"
