@@ -245,18 +245,22 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     out = Path(out)
     start = Path(checkpoint).resolve() if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
+    partner_run, partner_model = out / PARTNER_RUN, partner_checkpoint(out / "model.pt")
+    recorded_psf_gone = False  # resumed behind the PSF its checkpoints hold (a run folder copied elsewhere)
     if psf is None:
         if not resume:
             raise InputError("finetune needs --psf, the measured PSF to train behind (e.g. calibration/NAME/psf.exr)")
         psf = _run_psf(out)
-        if not Path(psf).is_file():
-            raise InputError(f"the PSF {out} was fine-tuned behind ({psf}, its config.json) is gone; give it, or a "
-                             "copy of it, with --psf")
-    if Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
+        recorded_psf_gone = not Path(psf).is_file()
+        runs_to_start = [run for run, needed in ((out, True), (partner_run, partner))
+                         if needed and not (run / "checkpoint.pt").is_file()]
+        if recorded_psf_gone and runs_to_start:  # a run with no checkpoint yet trains behind the file itself
+            raise InputError(f"the PSF {out} was fine-tuned behind ({psf}, its config.json) is gone and "
+                             f"{runs_to_start[0]} saved no checkpoint holding it; give it, or a copy of it, with --psf")
+    if not recorded_psf_gone and Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
         raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
-    if not Path(psf).is_file():
+    if not recorded_psf_gone and not Path(psf).is_file():
         raise InputError(f"--psf {psf} does not exist")
-    partner_run, partner_model = out / PARTNER_RUN, partner_checkpoint(out / "model.pt")
     if not resume and (partner_model.exists() or any((partner_run / name).exists() for name in RUN_FILES)):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()

@@ -195,9 +195,22 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     (out / "config.json").write_text(json.dumps({**config, "psf": str(tmp_path / "gone.exr")}))
     (out / "checkpoint.pt").unlink()  # the run as if stopped before its first checkpoint: config.json holds the PSF
     assert main(["finetune", "--out", str(out), "--resume", "--no-partner"]) == 1
-    assert f"({tmp_path / 'gone.exr'}, its config.json) is gone; give it, or a copy of it, with --psf" in \
-        capsys.readouterr().err
+    assert f"({tmp_path / 'gone.exr'}, its config.json) is gone and {out} saved no checkpoint holding it; give it, " \
+        "or a copy of it, with --psf" in capsys.readouterr().err
     assert main(["finetune", "--psf", str(moved), "--out", str(out), "--resume", "--no-partner"]) == 0
+
+
+def test_a_run_whose_psf_file_is_gone_resumes_behind_the_psf_its_checkpoint_holds(tmp_path, capsys):
+    """As design does (a run folder copied to another machine, a calibration folder moved): finetune refused,
+    'the PSF ... is gone; give it, or a copy of it, with --psf', though its checkpoint holds the PSF."""
+    psf_path = tmp_path / "psf.exr"
+    shutil.copyfile(MEASURED_PSF, psf_path)
+    out = tmp_path / "run"
+    assert main(["finetune", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]) == 0
+    psf_path.unlink()
+    assert main(["finetune", "--steps", "3", "--no-partner", "--out", str(out), "--resume"]) == 0
+    np.testing.assert_array_equal(read_checkpoint(out / "model.pt")["psf"].numpy(), load_psf(MEASURED_PSF))
+    assert read_checkpoint(out / "model.pt")["step"] == 3
 
 
 def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_path, capsys):
