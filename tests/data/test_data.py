@@ -312,3 +312,14 @@ def test_a_point_of_light_on_black_is_refused_with_how_many_pixels_hold_light():
     assert saturation_scale(scene, 5e-5) == pytest.approx(1e9)
     with pytest.raises(InputError, match="every pixel is zero"):
         saturation_scale(np.zeros((4, 4, 3), np.float32), 0.015)
+
+
+def test_hidden_files_and_folders_named_like_photographs_are_not_training_photographs(tmp_path):
+    """A macOS resource fork (._a.exr, beside a photograph copied from a Mac) stopped training with 'not a
+    readable OpenEXR file'; a folder named x.exr was reported as 'no such file'."""
+    from hdrcam.data.hdr_folder import hdr_files
+
+    _write_exr(tmp_path / "a.exr", np.ones((8, 8, 3), np.float32))
+    (tmp_path / "._a.exr").write_bytes(b"\x00\x05\x16\x07" + bytes(60))  # AppleDouble header
+    (tmp_path / "x.exr").mkdir()
+    assert hdr_files(tmp_path) == [tmp_path / "a.exr"]
