@@ -24,8 +24,8 @@ from hdrcam.data.augment import undistorted_rows, white_balance_jitter
 from hdrcam.data.crops import rotate_flip, saturated_crop, scored_crop
 from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
-from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE,
-                                    scale_to_clipped_fraction)
+from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, clipped_fraction,
+                                    fraction_shortfall, scale_to_clipped_fraction)
 from hdrcam.errors import InputError
 
 PROCEDURAL = "procedural"
@@ -82,10 +82,8 @@ class SceneSource:
                     raise InputError(f"{path}: the photograph holds no light (every pixel is 0); it cannot be "
                                      "saturated for training - remove it from --data")
 
-    def _raw_crop(self, size_px: int, rng: np.random.Generator) -> tuple[np.ndarray, str]:
-        # one source draws no choice, so single-source runs (Table 2, the shipped design) keep their random streams
-        folder = self.folders[int(rng.choice(len(self.folders), p=self.probabilities))] \
-            if len(self.folders) > 1 else self.folder
+    def _raw_crop(self, folder: HdrFolder | None, size_px: int, rng: np.random.Generator) -> tuple[np.ndarray, str]:
+        """A crop of ``folder``'s photographs (None: a procedural night scene) and where it came from."""
         if folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px)
             image, origin = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31))), PROCEDURAL
@@ -96,19 +94,29 @@ class SceneSource:
         return saturated_crop(image, size_px, rng), origin
 
     def training_scene(self, size_px: int, margin_px: int, rng: np.random.Generator) -> np.ndarray:
-        """A (size + 2 margin)^2 scene, rotated/flipped, with 1-3 % of its centre above 1. A crop whose centre
-        holds too little light to saturate (a dark corner of a photograph) is drawn again, up to TRAINING_DRAWS
-        times in a row; a draw that never failed is the one it was before this rule."""
+        """A (size + 2 margin)^2 scene, rotated/flipped, with 1-3 % of its centre above 1, from a source drawn in
+        proportion to its weight. A crop whose centre cannot be scaled so (too little light - a dark corner of
+        a photograph - or a plateau at its brightest: a light clipped at source lands on 1 exactly, and its crop
+        would teach that clipped pixels are white) is drawn again from the same source (the mixture's weights
+        hold), up to TRAINING_DRAWS times in a row; a draw that never failed is the one it was before this
+        rule."""
+        # one source draws no choice, so single-source runs (Table 2, the shipped design) keep their random streams
+        folder = self.folders[int(rng.choice(len(self.folders), p=self.probabilities))] \
+            if len(self.folders) > 1 else self.folder
         for _ in range(TRAINING_DRAWS):
-            raw, origin = self._raw_crop(size_px + 2 * margin_px, rng)
+            raw, origin = self._raw_crop(folder, size_px + 2 * margin_px, rng)
             crop = rotate_flip(raw, rng)
             fraction = rng.uniform(*TRAIN_CLIPPED_RANGE)
             try:
-                return _scaled(crop, fraction, margin_px)
+                scene = _scaled(crop, fraction, margin_px)
             except InputError:
                 continue
-        raise InputError(f"{origin}: {TRAINING_DRAWS} training crops of {size_px} px in a row held too little "
-                         "light to saturate 1-3 % of their pixels; remove dark photographs from --data")
+            centre = scene[margin_px:scene.shape[0] - margin_px, margin_px:scene.shape[1] - margin_px]
+            if not fraction_shortfall(clipped_fraction(centre), fraction, centre.shape[0] * centre.shape[1]):
+                return scene
+        raise InputError(f"{origin}: {TRAINING_DRAWS} training crops of {size_px} px in a row could not be scaled "
+                         "so 1-3 % of their pixels exceed white (too little light, or a plateau at their brightest: "
+                         "clipped at source); remove such photographs from --data")
 
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
         """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %

@@ -125,7 +125,8 @@ def test_a_mixture_draws_each_source_in_proportion_to_its_weight(tmp_path):
     for name, channel in (("red", 0), ("blue", 2)):
         (tmp_path / name).mkdir()
         image = np.full((64, 64, 3), 0.1, np.float32)
-        image[20:30, 20:30, channel] = 50.0
+        rows, columns = np.mgrid[0:64, 0:64]
+        image[..., channel] += 50.0 * np.exp(-((rows - 25) ** 2 + (columns - 25) ** 2) / 18.0)  # no plateau
         _write_exr(tmp_path / name / "lamp.exr", image)
     source = SceneSource(f"{tmp_path / 'red'}:2,{tmp_path / 'blue'}:1")
     rng = np.random.default_rng(0)
@@ -216,7 +217,7 @@ def test_dark_crops_are_drawn_again_and_a_photograph_that_is_always_dark_is_name
     star[100:102, 100:102] = 50.0  # 4 lit pixels: no 48 px crop has 1 % of its pixels lit
     (tmp_path / "stars").mkdir()
     _write_exr(tmp_path / "stars" / "star.exr", star)
-    with pytest.raises(InputError, match=r"star\.exr: 16 training crops .* too little light"):
+    with pytest.raises(InputError, match=r"star\.exr: 16 training crops .*\(too little light"):
         SceneSource(tmp_path / "stars").training_scene(48, 0, np.random.default_rng(0))
 
 
@@ -323,3 +324,26 @@ def test_hidden_files_and_folders_named_like_photographs_are_not_training_photog
     (tmp_path / "._a.exr").write_bytes(b"\x00\x05\x16\x07" + bytes(60))  # AppleDouble header
     (tmp_path / "x.exr").mkdir()
     assert hdr_files(tmp_path) == [tmp_path / "a.exr"]
+
+
+def test_training_crops_of_a_photograph_clipped_at_source_still_exceed_white_as_asked(tmp_path):
+    """A lamp whose pixels share one value (clipped in every frame of its bracket) holding more of a crop than the
+    fraction asked: scaled by the quantile, it landed on 1 exactly and the crop held nothing above 1, teaching
+    that clipped pixels are white (a real photograph with its brightest 3 % clipped: 0.35 % above 1 on average,
+    0 at least); a photograph that is one plateau could never be saturated, and trained silently."""
+    from hdrcam.data.saturation import TRAIN_CLIPPED_RANGE, clipped_fraction
+
+    rng = np.random.default_rng(0)
+    photograph = rng.lognormal(0.0, 1.0, (256, 256, 1)).astype(np.float32) * np.ones(3, np.float32)
+    rows, columns = np.mgrid[0:256, 0:256]
+    photograph[(rows - 60) ** 2 + (columns - 60) ** 2 <= 5 ** 2] = 1e3  # a lamp clipped: 2 % of a 64 px crop
+    (tmp_path / "clipped").mkdir()
+    _write_exr(tmp_path / "clipped" / "a.exr", photograph)
+    source = SceneSource(tmp_path / "clipped")
+    fractions = [clipped_fraction(source.training_scene(64, 8, np.random.default_rng(seed))[8:-8, 8:-8])
+                 for seed in range(12)]
+    assert min(fractions) >= TRAIN_CLIPPED_RANGE[0] / 2, fractions
+    (tmp_path / "flat").mkdir()
+    _write_exr(tmp_path / "flat" / "a.exr", np.full((96, 96, 3), 5.0, np.float32))
+    with pytest.raises(InputError, match="a plateau at their brightest"):
+        SceneSource(tmp_path / "flat").training_scene(32, 8, np.random.default_rng(0))
