@@ -96,11 +96,15 @@ def load_network_weights(network: ReconstructionNet, weights: dict, source: Path
     """``weights`` (a checkpoint's "network" state) into ``network``; a one-line InputError naming ``source``
     when they do not match its preset (keys missing or unknown: another preset or hdrcam version). The VGG
     features, loaded from their own file and not saved, may be absent."""
-    missing, unexpected = network.load_state_dict(weights, strict=False)
-    missing = [key for key in missing if not key.startswith("splitting.vgg.")]
-    if missing or unexpected:
+    own = network.state_dict()
+    resized = [key for key, value in weights.items() if key in own and getattr(value, "shape", None) != own[key].shape]
+    missing = [key for key in own if key not in weights and not key.startswith("splitting.vgg.")]
+    unexpected = [key for key in weights if key not in own]
+    if missing or unexpected or resized:
         raise InputError(f"{source}: network weights do not match preset {network.preset.name!r} ({len(missing)} "
-                         f"missing, {len(unexpected)} unknown: another preset or hdrcam version)")
+                         f"missing, {len(unexpected)} unknown, {len(resized)} of another size: another preset or "
+                         "hdrcam version)")
+    network.load_state_dict(weights, strict=False)
 
 
 def load_model(path: Path | None = None, *, vgg_weights: Path | None = None,

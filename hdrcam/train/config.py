@@ -60,16 +60,23 @@ class TrainConfig:
         """The configuration a run saved (fields a run saved before they existed take their defaults); a one-line
         InputError naming ``source`` for settings this version does not know (a run of a newer hdrcam)."""
         values = dict(document)
-        known = {field.name for field in dataclasses.fields(cls)}
         weights = values.get("weights", {})
-        unknown = sorted(set(values) - known) + (sorted(set(weights) - {field.name for field in
-                                                                         dataclasses.fields(LossWeights)})
-                                                  if isinstance(weights, dict) else ["weights"])
+        if not isinstance(weights, dict):
+            raise InputError(f"{source}: its loss weights are not a JSON object; restore the run folder or start a "
+                             "new one")
+        unknown = sorted(set(values) - {field.name for field in dataclasses.fields(cls)}) + \
+            sorted(set(weights) - {field.name for field in dataclasses.fields(LossWeights)})
         if unknown:
             raise InputError(f"{source}: settings this hdrcam does not know ({', '.join(unknown)}): a run of another "
                              "version? Resume it with that version, or start a new run")
-        values["weights"] = LossWeights(**weights)
-        return cls(**values)
+        try:
+            values["weights"] = LossWeights(**weights)
+            return cls(**values)
+        except InputError as error:  # a value no run can have
+            raise InputError(f"{source}: {error}") from None
+        except (TypeError, ValueError) as error:  # a value of the wrong type (null, a string for a number)
+            raise InputError(f"{source}: a setting of the wrong type ({error}); restore the run folder or start "
+                             "a new one") from None
 
     def learning_rate_at(self, step: int, base: float) -> float:
         """Polynomial decay: base (1 - step / steps)^power."""

@@ -153,7 +153,7 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
     if saved is not None:
         steps = config.steps
         _check_same_run(checkpoint_path, saved["config"], config, saved_psf=saved["psf"])
-        config = TrainConfig.from_dict(saved["config"])
+        config = TrainConfig.from_dict(saved["config"], checkpoint_path)
         if steps < config.steps:  # the learning-rate schedule decays over the run's steps: it may only grow
             raise InputError(f"--steps {steps}: {out} is a run of {config.steps} steps; on --resume --steps may only "
                              "grow it")
@@ -254,7 +254,7 @@ def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,
     is the same however its path is spelled (relative to another folder, absolute) and wherever a byte-identical
     copy lies; a PSF file given where the run's own is gone, when it holds the checkpoint's ``saved_psf`` or
     (``psf_file_may_replace``: a run that saved no step) whatever it holds."""
-    wanted, saved = config.as_dict(), TrainConfig.from_dict(saved).as_dict()
+    wanted, saved = config.as_dict(), TrainConfig.from_dict(saved, checkpoint_path).as_dict()
     for key in sorted((set(saved) | set(wanted)) - {"steps"}):
         if key in FILE_OPTIONS and same_file(saved.get(key), wanted.get(key)):
             continue

@@ -290,6 +290,9 @@ def test_a_closed_standard_output_is_exit_1_in_one_line(workspace, tmp_path, cap
     ("", "not a readable run configuration"),
     ("[1, 2]", "not a run configuration (a JSON list)"),
     ('{"future_option": 1, "steps": 4, "psf": "psf.exr"}', "settings this hdrcam does not know (future_option)"),
+    ('{"learning_rate": null, "psf": "psf.exr"}', "a setting of the wrong type"),
+    ('{"weights": [1], "psf": "psf.exr"}', "its loss weights are not a JSON object"),
+    ('{"steps": 0, "psf": "psf.exr"}', "steps must be a whole number, 1 or more"),
 ])
 @pytest.mark.parametrize("command", ["design", "finetune"])
 def test_a_damaged_or_foreign_run_configuration_is_exit_1_naming_it(command, config, mention, tmp_path, capsys,

@@ -310,3 +310,10 @@ def test_an_init_checkpoint_whose_weights_do_not_match_the_network_is_refused(tm
     save_checkpoint(tmp_path / "renamed.pt", state)
     with pytest.raises(InputError, match=r"renamed.pt: network weights do not match preset 'fast' \(\d+ missing"):
         build_model(_tiny(doe=None, psf="dirac", init_checkpoint=str(tmp_path / "renamed.pt")), None, True)
+    state = read_checkpoint(SHIPPED_CHECKPOINT)  # one layer of another width: load_state_dict's multi-line error
+    weight = state["network"]["splitting.entry.0.weight"]
+    state["network"]["splitting.entry.0.weight"] = torch.cat([weight, weight[:1]])
+    state.pop("format", None)
+    save_checkpoint(tmp_path / "wider.pt", state)
+    with pytest.raises(InputError, match=r"wider.pt: .* 1 of another size"):
+        build_model(_tiny(doe=None, psf="dirac", init_checkpoint=str(tmp_path / "wider.pt")), None, True)
