@@ -16,6 +16,7 @@ def test_identity_tone_curves_are_linear(tag):
 @pytest.mark.parametrize("tag, said", [
     (curv(gamma=2.2), "gamma 2.2"),
     (curv(gamma=1.8), "gamma 1.8"),  # ProPhoto RGB
+    (curv(gamma=257 / 256), "gamma 1.004"),  # the smallest step from 1 a u8Fixed8 gamma takes: not "gamma 1"
     (para(3, *SRGB_PARAMETERS), "gamma 2.4, piecewise"),
     (curv(table=np.linspace(0.0, 1.0, 1024) ** (1 / 2.2)), "a 1024-point tone curve"),
 ])
@@ -35,7 +36,12 @@ def test_the_srgb_parametric_curve_is_evaluated_as_iec_61966_2_1():
 
 
 def test_a_profile_without_tone_curves_or_a_damaged_one_is_not_known_to_be_linear():
-    assert tone_curve_encoding(profile({b"A2B0": b"mft2" + bytes(100)})) == "no tone curves: a LUT-based profile"
+    assert tone_curve_encoding(profile({b"A2B0": b"mft2" + bytes(100)})) == "a LUT-based profile"
+    # colour management applies a LUT before the curves (littleCMS: _cmsReadInputLUT): identity curves beside one
+    # say nothing of the encoding
+    assert tone_curve_encoding(profile({b"rTRC": curv(), b"gTRC": curv(), b"bTRC": curv(),
+                                        b"A2B0": b"mft2" + bytes(100)})) == "a LUT-based profile"
+    assert tone_curve_encoding(profile({b"kTRC": curv()})) == "no RGB tone curves: a grey, CMYK or LUT-based profile"
     linear = rgb_curves(curv())
     for damaged in (linear[:100], linear[:36] + b"xxxx" + linear[40:], rgb_curves(b"curv" + bytes(4) + b"\0\0\4\0"),
                     rgb_curves(b"sf32" + bytes(20))):

@@ -207,7 +207,7 @@ def test_a_png_chunk_that_claims_gigabytes_is_skipped_not_read(tmp_path):
 
 @pytest.mark.parametrize("icc, said", [(rgb_curves(para(3, *SRGB_PARAMETERS)), "gamma 2.4, piecewise"),
                                        (rgb_curves(curv(gamma=1.8)), "gamma 1.8"),
-                                       (profile({b"A2B0": b"mft2" + bytes(100)}), "no tone curves"),
+                                       (profile({b"A2B0": b"mft2" + bytes(100)}), "a LUT-based profile"),
                                        (rgb_curves(curv()), None)])
 def test_a_tiff_or_png_whose_icc_profile_encodes_its_values_is_refused_a_linear_one_read(tmp_path, icc, said):
     """16-bit TIFFs from RAW converters embed their output profile (sRGB, ProPhoto's gamma 1.8): the TIFF's was not
