@@ -95,7 +95,8 @@ SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean 
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
 STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
-FFT_ROUND_OFF = 1e-6  # of a float32 FFT convolution's largest value: below it, round-off (~1e-7), not light
+FFT_ROUND_OFF = 1e-6  # of a float32 FFT convolution's largest value: below it, round-off (measured 8e-8 of the
+# peak over 96 px, 6.5e-7 over 2048-4096 px), not light; the shipped PSFs hold at most 5e-6 of their light there
 
 
 @dataclasses.dataclass(frozen=True)

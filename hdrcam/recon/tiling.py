@@ -244,8 +244,8 @@ def _on(network, device: torch.device, dtype: torch.dtype):
     converts in place, so a bfloat16 run rounded the caller's float32 weights for good (the same frame's next
     float32 reconstruction then differed by up to 2.1) and a CUDA run left the model on the GPU."""
     parameter = next(network.parameters(), None) if isinstance(network, torch.nn.Module) else None
-    if parameter is None or (parameter.device == torch.device(device) and parameter.dtype == dtype):
-        return network.to(device=device, dtype=dtype)
+    if parameter is None or (parameter.device == torch.empty(0, device=device).device and parameter.dtype == dtype):
+        return network.to(device=device, dtype=dtype)  # "cuda" is the current device's index: compared as such
     return copy.deepcopy(network).to(device=device, dtype=dtype)
 
 

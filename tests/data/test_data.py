@@ -324,6 +324,8 @@ def test_hidden_files_and_folders_named_like_photographs_are_not_training_photog
     (tmp_path / "._a.exr").write_bytes(b"\x00\x05\x16\x07" + bytes(60))  # AppleDouble header
     (tmp_path / "x.exr").mkdir()
     assert hdr_files(tmp_path) == [tmp_path / "a.exr"]
+    (tmp_path / "b.exr").symlink_to(tmp_path / "gone.exr")  # kept: reading it names it, no photograph goes missing
+    assert hdr_files(tmp_path) == [tmp_path / "a.exr", tmp_path / "b.exr"]
 
 
 def test_training_crops_of_a_photograph_clipped_at_source_still_exceed_white_as_asked(tmp_path):
