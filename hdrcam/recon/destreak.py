@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from hdrcam.recon.network import ReconstructionNet
-from hdrcam.recon.tiling import clipped_mask, reconstruct_frame
+from hdrcam.recon.tiling import CLIP_LEVEL, clipped_mask, reconstruct_frame
 
 FEATHER_PX = 8
 
@@ -59,7 +59,9 @@ def streak_zone(frame: np.ndarray, reach_px: int) -> np.ndarray:
 
 def destreak_frame(network: ReconstructionNet, frame: np.ndarray, *, psf_radius_px: int, gate: bool = True,
                    device: torch.device = torch.device("cpu")) -> tuple[np.ndarray, DestreakReport]:
-    """H x W x 3 frame in [0, 1] -> the frame with the streaks of its clipped lights removed.
+    """H x W x 3 frame in [0, 1] -> the frame with the streaks of its clipped lights removed; clipped channels
+    keep the frame's value (a lower bound of their light: the network's I_U took 28 % of a streaked frame's
+    clipped values below the clip level, so a later reconstruct saw those lights as less clipped).
 
     ``gate`` False returns the network's I_U everywhere (for measuring what the gate is worth).
     """
@@ -69,5 +71,5 @@ def destreak_frame(network: ReconstructionNet, frame: np.ndarray, *, psf_radius_
         return frame.astype(np.float32, copy=True), DestreakReport(0.0, time.perf_counter() - started)
     clean, _ = reconstruct_frame(_UnsaturatedOnly(network), frame, psf_radius_px=psf_radius_px,
                                  adaptive=gate, device=device)
-    blended = frame + weight[..., None] * (clean - frame)
+    blended = np.where(frame >= CLIP_LEVEL, frame, frame + weight[..., None] * (clean - frame))
     return blended.astype(np.float32), DestreakReport(float(weight.mean()), time.perf_counter() - started)

@@ -38,3 +38,15 @@ def test_gated_destreak_keeps_the_frame_outside_the_zone_and_passes_a_frame_with
     dark = np.full_like(frame, 0.1)
     unchanged, report = destreak_frame(network, dark, psf_radius_px=10)
     assert np.array_equal(unchanged, dark) and report.streak_zone_fraction == 0.0
+
+
+def test_clipped_channels_keep_the_frames_value_gated_or_not():
+    """A clipped value is a lower bound of its light: the network's I_U took 1251 of 4492 clipped values of a
+    streaked frame below the clip level (down to 0.949), so a later reconstruct saw those lights as less clipped."""
+    torch.manual_seed(0)
+    network = ReconstructionNet(preset("fast"))
+    frame = frame_with_one_light()
+    clipped = frame >= 0.99
+    for gate in (True, False):
+        clean, _ = destreak_frame(network, frame, psf_radius_px=10, gate=gate)
+        np.testing.assert_array_equal(clean[clipped], frame[clipped])
