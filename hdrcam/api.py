@@ -158,9 +158,10 @@ def load_network_model(path, *, vgg_weights=None):
     else:
         model = load_model(path, vgg_weights=vgg_weights)
     if model.fixed_psf == "windshield":
+        runs_it = "destreak runs it from the checkpoint it was exported from" if model.preset == "onnx" else \
+            f"hdrcam destreak --method network --checkpoint {model.source}"
         raise InputError(f"{model.source}: a windshield network (design --psf windshield): it removes windshield "
-                         f"streaks (hdrcam destreak --method network --checkpoint {model.source}), not clipped "
-                         "highlights")
+                         f"streaks ({runs_it}), not clipped highlights")
     return model
 
 

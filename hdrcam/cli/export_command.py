@@ -37,6 +37,10 @@ def run(arguments: argparse.Namespace) -> int:
     inputs = [arguments.checkpoint or SHIPPED_CHECKPOINT] + ([arguments.vgg_weights] if arguments.vgg_weights else [])
     check_outputs([arguments.out], overwrite=arguments.overwrite, inputs=inputs)
     model = load_model(arguments.checkpoint, vgg_weights=arguments.vgg_weights)
+    if model.fixed_psf == "windshield":  # its export would be the HDR estimate, not the streak-free image destreak uses
+        raise InputError(f"{model.source}: a windshield network (design --psf windshield): destreak runs it from this "
+                         f"checkpoint (hdrcam destreak --method network --checkpoint {model.source}); export writes "
+                         "highlight-reconstruction networks")
     if arguments.format == "onnx":
         metadata = {"hdrcam_psf": json.dumps(model.psf.tolist()), "hdrcam_profile": model.profile,
                     "hdrcam_preset": model.preset, "hdrcam_checkpoint": str(model.source),
@@ -46,9 +50,11 @@ def run(arguments: argparse.Namespace) -> int:
         export_torchscript(model.network, arguments.out, overwrite=arguments.overwrite)
     partner = partner_checkpoint(Path(model.source))
     if partner.is_file() and not Path(model.source).stem.endswith("-partner"):
+        why = "for reconstruct's results (it reads both ONNX files)" if arguments.format == "onnx" else \
+            "to run both as reconstruct does (reconstruct itself reads checkpoints and ONNX files, not TorchScript)"
         warnings.warn(f"{model.source} has a partner, {partner.name}, which reconstruct runs beside it (keeping what "
                       f"both paint); this export holds the checkpoint alone. Export the partner too, as "
-                      f"{partner_checkpoint(arguments.out).name} beside {arguments.out.name}, for the same results: "
+                      f"{partner_checkpoint(arguments.out).name} beside {arguments.out.name}, {why}: "
                       f"hdrcam export --checkpoint {partner} --format {arguments.format} --out "
                       f"{partner_checkpoint(arguments.out)}")
     print(json.dumps({"format": arguments.format, "out": str(arguments.out), "checkpoint": str(model.source),

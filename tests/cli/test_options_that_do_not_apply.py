@@ -38,12 +38,21 @@ def test_reconstruct_refuses_the_windshield_network(tmp_path, capsys):
     assert main(["reconstruct", str(frame), "--checkpoint", str(windshield), "--out", str(tmp_path / "r")]) == 1
     assert "a windshield network" in _one_line(capsys)  # it ran, its streak check behind a 2-point star
     assert not (tmp_path / "r").exists()
+    exported = tmp_path / "windshield.onnx"  # its export held the HDR estimate, which nothing runs
+    assert main(["export", "--format", "onnx", "--checkpoint", str(windshield), "--out", str(exported)]) == 1
+    assert "a windshield network (design --psf windshield): destreak runs it from this checkpoint" in \
+        _one_line(capsys) and not exported.exists()
     pytest.importorskip("onnxruntime")
-    exported = tmp_path / "windshield.onnx"
-    assert main(["export", "--format", "onnx", "--checkpoint", str(windshield), "--out", str(exported)]) == 0
-    capsys.readouterr()
+    import json
+
+    from hdrcam.recon.export import export_onnx
+    from hdrcam.train.checkpoint import load_model
+
+    model = load_model(windshield)  # an export made before export refused it
+    export_onnx(model.network, exported, {"hdrcam_psf": json.dumps(model.psf.tolist()), "hdrcam_profile": model.profile,
+                                          "hdrcam_preset": model.preset, "hdrcam_fixed_psf": "windshield"})
     assert main(["reconstruct", str(frame), "--checkpoint", str(exported), "--out", str(tmp_path / "r")]) == 1
-    assert "a windshield network" in _one_line(capsys)  # its export ran as an HDR network
+    assert "destreak runs it from the checkpoint it was exported from" in _one_line(capsys)
 
 
 def test_vgg_weights_for_a_preset_without_vgg_are_named_as_unused(tmp_path):
