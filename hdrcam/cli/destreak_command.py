@@ -50,7 +50,8 @@ def run(arguments: argparse.Namespace) -> int:
 
     network = arguments.method == "network"
     if not network:
-        for option, given in (("--checkpoint", arguments.checkpoint is not None), ("--no-gate", not arguments.gate)):
+        for option, given in (("--checkpoint", arguments.checkpoint is not None), ("--no-gate", not arguments.gate),
+                              (f"--device {arguments.device}", arguments.device != "auto")):
             if given:
                 raise InputError(f"{option} applies only to --method network (--method fit, the default, "
                                  "uses no network)")
@@ -70,7 +71,9 @@ def run(arguments: argparse.Namespace) -> int:
             work = {"streak_zone_fraction": round(report.streak_zone_fraction, 4)}
         else:
             clean, fit = subtract_windshield_streaks(frame)
-            method = {"method": "streak fit", "angle_deg": "none" if fit.angle_deg is None else f"{fit.angle_deg:.2f}"}
+            removed = fit.clusters - fit.clusters_left  # the angle says something only where streaks were removed
+            method = {"method": "streak fit", "clusters_destreaked": f"{removed} of {fit.clusters}",
+                      "angle_deg": f"{fit.angle_deg:.2f}" if removed else "none"}
             work = {"work": fit.summary()}
         with atomic_paths((exr_path, png_path), overwrite=arguments.overwrite) as (exr_temporary, png_temporary):
             write_exr(exr_temporary, clean, channel_names=("R", "G", "B"),  # a frame's two files, or neither

@@ -296,3 +296,18 @@ def test_destreak_names_an_input_given_twice(tmp_path, capsys):
     assert main(["destreak", str(frame), str(frame), "--out", str(tmp_path / "out")]) == 1
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and f"{frame} is given twice" in error
+
+
+def test_destreak_records_an_angle_only_where_it_removed_streaks_and_refuses_a_device_for_the_fit(tmp_path,
+                                                                                                   capsys):
+    """A frame without streaks recorded the best fit's angle (3.50) in its EXR as if streaks at 3.5 deg had been
+    subtracted; --device cuda was taken and ignored by the fit, which runs on the CPU."""
+    frame = np.full((64, 64, 3), 0.2, np.float32)
+    frame[30:33, 30:33] = 1.0  # a clipped light, no streak
+    source = write_exr(tmp_path / "clear.exr", frame)
+    assert main(["destreak", str(source), "--out", str(tmp_path / "out")]) == 0
+    attributes = read_exr(tmp_path / "out" / "clear.exr").attributes
+    assert attributes["angle_deg"] == "none" and attributes["clusters_destreaked"] == "0 of 1"
+    capsys.readouterr()
+    assert main(["destreak", str(source), "--device", "cuda", "--out", str(tmp_path / "other")]) == 1
+    _one_line_error(capsys, "--device cuda applies only to --method network")
