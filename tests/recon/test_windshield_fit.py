@@ -72,3 +72,20 @@ def test_the_fitted_angle_stays_inside_the_windshield_range(angle_deg):
     its edge: the refinement stepped from 2.5 to 2.0 and 1.75 degrees, an angle the search never covers."""
     cleaned, report = subtract_windshield_streaks(capture(night(), two_point_star(63, angle_deg)))
     assert 2.5 <= abs(report.angle_deg) <= 8.0, report.angle_deg
+
+
+@pytest.mark.parametrize("pole", ["below", "above"])
+def test_a_lamp_on_a_pole_without_a_windshield_is_left_as_it_was(pole):
+    """A street lamp on a dim pole, no streaks: the pole, one-sided, was fitted as streaks (F 1082) and
+    subtracted - the sky beside the lamp and the pole dimmed, a brighter pole cut to 0."""
+    rng = np.random.default_rng(2)
+    frame = 0.05 + 0.004 * rng.standard_normal((128, 128, 3))
+    frame[39:42, 63:66] = 1.0
+    if pole == "below":
+        frame[42:, 64:66] += 0.08
+    else:
+        frame[:39, 64:66] += 0.08
+    frame = np.clip(frame, 0.0, 1.0).astype(np.float32)
+    cleaned, report = subtract_windshield_streaks(frame)
+    assert report.clusters_left == report.clusters == 1, report.summary()
+    np.testing.assert_array_equal(cleaned, frame)
