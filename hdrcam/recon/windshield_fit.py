@@ -13,8 +13,9 @@ median of the pixels BACKGROUND_OFFSETS_PX to either side horizontally, which fo
 of the vertical lies off the streak. Per angle, damped Jacobi steps fit the a_k (hdrcam.recon.blob_amplitudes);
 the angle is the one with the least residual on a coarse grid (ANGLE_STEP_DEG) refined twice by halving.
 The fitted streaks are then subtracted from the unclipped pixels of each cluster where they explain more
-than noise (_evidence) and, around a lone light, show on both sides of it (_two_sided: a pole is one-sided). Pixels where the streak itself clipped
-stay clipped: their light is lost (hdrcam.recon.streaks warns of that case for the DOE).
+than noise (_evidence) and, around a lone light, show on both sides of it (_two_sided: a pole is one-sided).
+Pixels where the streak itself clipped stay clipped: their light is lost (hdrcam.recon.streaks warns of that
+case for the DOE).
 
 Only what the frame needs is modelled: the clipped blobs whose streaks overlap form a cluster, each cluster
 is fitted in its own crop (grown by the PSF radius), and the angle's residual is summed over the crops.
