@@ -36,14 +36,24 @@ TRAINING_DRAWS = 16  # crops drawn in a row before a training scene without ligh
 
 
 def parse_mixture(data: str) -> list[tuple[str, float]]:
-    """``SOURCE[:WEIGHT],...`` -> [(source, weight)]; a source without a weight weighs 1."""
+    """``SOURCE[:WEIGHT],...`` -> [(source, weight)]; a source without a weight weighs 1. A folder whose own name
+    holds a ',' or ends in ':NUMBER' is taken as itself when it exists (``data/shoot:2`` trained on ``data/shoot``
+    with weight 2), and refused as ambiguous when the split reading names an existing folder too."""
+    if str(data) not in ("", PROCEDURAL) and Path(str(data)).exists():
+        return [(str(data), 1.0)]
     mixture = []
     for entry in str(data).split(","):
         source, _, weight = entry.rpartition(":")
         try:
-            mixture.append((source, float(weight)) if source else (entry, 1.0))
+            weighted = (source, float(weight)) if source else (entry, 1.0)
         except ValueError:
-            mixture.append((entry, 1.0))  # a ':' inside a path, not a weight
+            weighted = (entry, 1.0)  # a ':' inside a path, not a weight
+        if weighted[0] != entry and Path(entry).exists():
+            if Path(weighted[0]).exists():
+                raise InputError(f"--data {data!r}: {entry} is a folder, and {weighted[0]} with weight {weighted[1]:g} "
+                                 "too; rename one of them")
+            weighted = (entry, 1.0)
+        mixture.append(weighted)
     weights = [weight for _, weight in mixture]
     if not mixture or any(not source for source, _ in mixture) or not all(0 < weight < math.inf for weight in weights) \
             or not math.isfinite(sum(weights)):

@@ -349,3 +349,19 @@ def test_training_crops_of_a_photograph_clipped_at_source_still_exceed_white_as_
     _write_exr(tmp_path / "flat" / "a.exr", np.full((96, 96, 3), 5.0, np.float32))
     with pytest.raises(InputError, match="a plateau at their brightest"):
         SceneSource(tmp_path / "flat").training_scene(32, 8, np.random.default_rng(0))
+
+
+def test_a_folder_named_like_a_mixture_is_taken_as_itself_and_an_ambiguous_one_refused(tmp_path, monkeypatch):
+    """--data data/shoot:2 trained on data/shoot with weight 2 (recorded so), and data/2024,night was refused as
+    'data/2024 is not a folder'."""
+    from hdrcam.data.scenes import parse_mixture
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("shoot:2", "2024,night"):
+        (tmp_path / name).mkdir()
+        assert parse_mixture(name) == [(name, 1.0)]
+    assert parse_mixture("shoot:2,procedural:3") == [("shoot:2", 1.0), ("procedural", 3.0)]
+    (tmp_path / "shoot").mkdir()
+    with pytest.raises(InputError, match="shoot:2 is a folder, and shoot with weight 2 too"):
+        parse_mixture("shoot:2,procedural")
+    assert parse_mixture("procedural") == [("procedural", 1.0)]
