@@ -83,14 +83,19 @@ class SceneSource:
         self.probabilities = weights / weights.sum()
         self.folder = self.folders[0]
 
-    def check_training_folders(self) -> None:
+    def check_training_folders(self, scene_px: int | None = None) -> None:
         """Refuse, by name, a training photograph without light (every pixel 0 in every channel): no crop of it
-        can be saturated (checked once, before training, rather than failing at the step that draws it)."""
+        can be saturated (checked once, before training, rather than failing at the step that draws it); warn,
+        by name, of one smaller than ``scene_px`` (a training scene's side, crop and margins): its crops are
+        mirrored to fill it, as the test set's are."""
         for folder in (folder for folder in self.folders if folder is not None):
             for path, image in zip(folder.files, folder.images):
                 if not image.max(initial=0.0) > 0.0:
                     raise InputError(f"{path}: the photograph holds no light (every pixel is 0); it cannot be "
                                      "saturated for training - remove it from --data")
+                if scene_px is not None and min(image.shape[:2]) < scene_px:
+                    warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {scene_px} px "
+                                  "training scene (crop and margins): mirrored to fill it")
 
     def _raw_crop(self, folder: HdrFolder | None, size_px: int, rng: np.random.Generator) -> tuple[np.ndarray, str]:
         """A crop of ``folder``'s photographs (None: a procedural night scene) and where it came from."""

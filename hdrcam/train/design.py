@@ -160,8 +160,8 @@ def train(config: TrainConfig, out: Path, *, resume: bool = False, vgg_weights: 
         config.steps = steps
 
     source = SceneSource(config.data)
-    source.check_training_folders()
     model = build_model(config, vgg_weights, random_vgg, saved).to(device)
+    source.check_training_folders(config.crop_px + 2 * model.capture.margin_px)
     optimizer = torch.optim.Adam([
         {"params": [p for p in model.network.parameters() if p.requires_grad], "lr": config.learning_rate,
          "base_lr": config.learning_rate},
