@@ -371,6 +371,6 @@ def test_a_training_photograph_smaller_than_a_training_scene_is_named_once_befor
     """Evaluate warned of a photograph smaller than its crop (mirrored to fill it); training mirrored it silently."""
     _write_exr(tmp_path / "thumbnail.exr", np.linspace(0.1, 5.0, 40 * 60 * 3, dtype=np.float32).reshape(40, 60, 3))
     _write_exr(tmp_path / "large.exr", np.linspace(0.1, 5.0, 128 * 128 * 3, dtype=np.float32).reshape(128, 128, 3))
-    with pytest.warns(UserWarning, match=r"thumbnail\.exr: 60 x 40 px, smaller than the 96 px training scene") as caught:
+    with pytest.warns(UserWarning, match=r"thumbnail\.exr: 60 x 40 px, smaller than the 96 px training") as caught:
         SceneSource(str(tmp_path)).check_training_folders(96)
     assert len(caught) == 1
