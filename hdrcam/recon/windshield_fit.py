@@ -49,6 +49,8 @@ EVIDENCE_DISTANCE_PX = 4  # the evidence for streaks is judged on pixels at leas
 MIN_EVIDENCE = 50.0  # F statistic below which a cluster's fitted streaks are not subtracted (_evidence)
 SIDE_AGREEMENT = 0.3  # each side of a cluster shows at least this share of its streaks' amplitude (_two_sided)
 MIN_SIDE_PIXELS = 20  # evidence pixels on a side, reached by the streaks, below which that side cannot tell
+STREAK_ROUND_OFF = 1e-6  # of the fitted streaks' peak: below it, the FFT's round-off (~1e-8), not a streak
+MIN_LIGHT_PX = 2  # clipped pixels of a light that makes a cluster "several lights" (a lone glint does not)
 
 
 @dataclasses.dataclass
@@ -163,20 +165,25 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     side's evidence pixels (:func:`_evidence_weight`) is at least SIDE_AGREEMENT of the amplitude fitted on both.
     A lamppost's pole or a mast above a light is one-sided (0.00-0.01 against 0.69-1.25 for windshield streaks
     on procedural night scenes) and fitted as streaks with F 342-1082 - the pole's light was subtracted, down to
-    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (a light at the frame's edge)
-    cannot tell, and passes; so does a cluster of several lights, whose rows above and below one another's do not
-    split into sides (on procedural night scenes such a cluster of 17 lights read -0.60 above, and its streaks,
-    removed, gained 4.4 dB)."""
-    if crop.blob_count - 1 > 1:
+    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (FFT round-off, below
+    STREAK_ROUND_OFF of their peak, reaches none: a light at the frame's top or bottom edge) cannot tell, and
+    passes; so does a cluster of several lights of at least MIN_LIGHT_PX pixels each, whose rows above and below
+    one another's do not split into sides (on procedural night scenes such a cluster of 17 lights read -0.60
+    above, and its streaks, removed, gained 4.4 dB). Known: a streak that clips over a bright wall below its
+    light, or a lamp's pole under real streaks of a dim lamp (3-5 x white), also read one-sided: those frames are
+    left as they were."""
+    sizes = torch.bincount(crop.index, minlength=crop.blob_count)[1:]
+    if int((sizes >= MIN_LIGHT_PX).sum()) > 1:
         return True
     weight = _evidence_weight(crop)
+    model = torch.where(streaks > STREAK_ROUND_OFF * streaks.max(), streaks, torch.zeros_like(streaks))
     rows = torch.arange(weight.shape[1], dtype=torch.float32)[:, None].expand(weight.shape[1:])
     centre = float(rows[crop.blob_mask[0] > 0].mean())
 
     def amplitude(where: torch.Tensor) -> tuple[float, int]:
         w = weight * where
-        return float((w * crop.streaks * streaks).sum()) / max(float((w * streaks ** 2).sum()), 1e-30), \
-            int(((w[0] > 0) & (streaks.sum(dim=0) > 0)).sum())
+        return float((w * crop.streaks * model).sum()) / max(float((w * model ** 2).sum()), 1e-30), \
+            int(((w[0] > 0) & (model.sum(dim=0) > 0)).sum())
 
     both, _ = amplitude(torch.ones_like(rows))
     if both <= 0.0:
