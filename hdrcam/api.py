@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import numbers
 from pathlib import Path
 
 import numpy as np
@@ -80,10 +81,22 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
     less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6).
     """
+    for name, value, reader in (("frame", frame, "hdrcam.io.ldr_frame.read_ldr_frame(path)"),
+                                ("model", model, "hdrcam.load_network_model(path)"),
+                                ("psf", psf, "hdrcam.optics.psf_file.load_psf(path)")):
+        if isinstance(value, (str, Path)):  # numpy read a path as a string to convert, or a model had no .psf
+            raise InputError(f"reconstruct's {name} is an array or a model, not a file ({value}); read it with "
+                             f"{reader}")
     if model is None:
         from hdrcam.train.checkpoint import load_model
 
         model = load_model()
+    if getattr(model, "fixed_psf", None) == "windshield":
+        raise InputError(f"{getattr(model, 'source', 'the model')}: a windshield network (design --psf windshield): "
+                         "it removes windshield streaks (hdrcam destreak), not clipped highlights")
+    if noise is not None and not isinstance(noise, NoiseModel):
+        raise InputError(f"noise {noise!r}: a hdrcam.recon.consistency.NoiseModel (full well and read noise, e-)")
+    device = checked_device(device, dtype)
     psf = model.psf if psf is None else unit_sum_psf(psf)
     frame = np.ascontiguousarray(frame, np.float32)
     if frame.ndim != 3 or frame.shape[-1] != 3 or 0 in frame.shape:
@@ -93,10 +106,10 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     if frame.min() < -FRAME_RANGE_SLACK or frame.max() > 1.0 + FRAME_RANGE_SLACK:
         raise FrameError(f"frame values span [{frame.min():.3g}, {frame.max():.3g}]; a captured LDR frame lies in "
                          "[0, 1] (1 = the sensor's white level): is it an HDR image or unnormalised?")
-    if isinstance(tile_px, bool) or not isinstance(tile_px, int) or tile_px < MIN_TILE_PX:
+    if isinstance(tile_px, bool) or not isinstance(tile_px, numbers.Integral) or tile_px < MIN_TILE_PX:
         raise InputError(f"tile {tile_px!r} px: a window's core is a whole number of pixels, at least {MIN_TILE_PX} "
                          "(smaller cores run the network almost only on their halo)")
-    if isinstance(halo_px, bool) or not isinstance(halo_px, int) or halo_px < 0:
+    if isinstance(halo_px, bool) or not isinstance(halo_px, numbers.Integral) or halo_px < 0:
         raise InputError(f"halo {halo_px!r} px: a whole number of pixels, 0 or more")
     frame = np.clip(frame, 0.0, 1.0)
     if streak_fit and isinstance(partner, str) and partner == "auto":
@@ -134,6 +147,22 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
+
+
+def checked_device(device: torch.device | str, dtype: torch.dtype) -> torch.device:
+    """``device`` as a torch device; InputError for a name torch does not know, CUDA where torch sees none, and a
+    half-precision ``dtype`` on a CPU (many times slower there: 5.7 s against 0.8 s for float32 on a 64 px
+    frame), as the command line refuses them."""
+    try:
+        device = torch.device(device)
+    except (RuntimeError, TypeError) as error:
+        raise InputError(f"device {device!r}: {(str(error).splitlines() or [''])[0]}") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise InputError(f"device {device}: torch sees no CUDA device")
+    if device.type == "cpu" and dtype in (torch.float16, torch.bfloat16):
+        raise InputError(f"{dtype} on the CPU runs many times slower than float32, with no gain in memory that "
+                         "matters there: use float32, or a CUDA device")
+    return device
 
 
 def network_windows(regions, psf: np.ndarray, *, mirror_check: bool = True, partner: bool = False) -> int:

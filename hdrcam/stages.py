@@ -243,6 +243,9 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     from hdrcam.train.design import RUN_FILES
 
     out = Path(out)
+    if psf is not None and not isinstance(psf, (str, Path)):  # a run records its PSF's path, to resume behind it
+        raise InputError(f"finetune's psf is a file, not a {type(psf).__name__}: give the psf.exr `hdrcam calibrate "
+                         "psf` writes (calibrate_psf returns the PSF in memory only)")
     start = Path(checkpoint).resolve() if checkpoint else SHIPPED_CHECKPOINT
     state = read_checkpoint(start)
     partner_run, partner_model = out / PARTNER_RUN, partner_checkpoint(out / "model.pt")

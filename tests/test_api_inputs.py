@@ -114,3 +114,35 @@ def test_a_folder_given_as_a_frame_is_named_as_a_folder(tmp_path):
 
     with pytest.raises(InputError, match="is a folder; give the frames in it"):
         read_ldr_frame(tmp_path)
+
+
+def test_files_where_arrays_belong_windshield_networks_and_unusable_devices_are_input_errors(model, tmp_path):
+    """A notebook user got numpy's 'could not convert string to float' for a frame's path, an AttributeError for a
+    checkpoint's path, a silent no-op from the windshield network the CLI refuses, torch's AssertionError for
+    device='cuda' without CUDA, float16 on the CPU at 7 x float32's time, and an AttributeError for noise=25000;
+    tile_px=np.int64(256) was refused as not a whole number."""
+    import torch
+
+    from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT
+
+    frame = _frame()
+    for arguments, message in (((str(tmp_path / "frame.exr"),), "frame is an array or a model, not a file"),
+                               ((frame, "model.pt"), "model is an array or a model, not a file")):
+        with pytest.raises(InputError, match=message):
+            hdrcam.reconstruct(*arguments)
+    with pytest.raises(InputError, match="psf is an array or a model, not a file"):
+        hdrcam.reconstruct(frame, model, psf=tmp_path / "psf.exr")
+    with pytest.raises(InputError, match="a windshield network"):
+        hdrcam.reconstruct(frame, load_model(SHIPPED_CHECKPOINT.parent / "windshield-fast.pt"))
+    if not torch.cuda.is_available():
+        with pytest.raises(InputError, match="torch sees no CUDA device"):
+            hdrcam.reconstruct(frame, model, device="cuda")
+    with pytest.raises(InputError, match="device 'gpu'"):
+        hdrcam.reconstruct(frame, model, device="gpu")
+    with pytest.raises(InputError, match="on the CPU runs many times slower"):
+        hdrcam.reconstruct(frame, model, dtype=torch.float16)
+    with pytest.raises(InputError, match="noise 25000: a hdrcam.recon.consistency.NoiseModel"):
+        hdrcam.reconstruct(frame, model, noise=25000)
+    assert hdrcam.reconstruct(frame, model, tile_px=np.int64(256), partner=None).hdr.shape == frame.shape
+    with pytest.raises(InputError, match="finetune's psf is a file, not a ndarray"):
+        hdrcam.finetune(np.ones((3, 5, 5)), tmp_path / "run")
