@@ -92,8 +92,9 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool,
         capture = OpticalCapture(profile, psf=psf, windshield=config.psf == "windshield")
     else:
         capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)
-    torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
-    network = ReconstructionNet(preset, vgg)
+    with torch.random.fork_rng(devices=[]):  # the caller's random state is left as it was
+        torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
+        network = ReconstructionNet(preset, vgg)
     if config.init_checkpoint and saved is None:
         state = read_checkpoint(recorded_checkpoint(config.init_checkpoint))
         if state["preset"] != preset.name:

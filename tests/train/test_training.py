@@ -317,3 +317,18 @@ def test_an_init_checkpoint_whose_weights_do_not_match_the_network_is_refused(tm
     save_checkpoint(tmp_path / "wider.pt", state)
     with pytest.raises(InputError, match=r"wider.pt: .* 1 of another size"):
         build_model(_tiny(doe=None, psf="dirac", init_checkpoint=str(tmp_path / "wider.pt")), None, True)
+
+
+def test_building_a_run_leaves_the_callers_random_state_and_still_follows_the_runs_seed():
+    """design / finetune reseeded the caller's global torch RNG with the run's seed (a notebook's own stream
+    changed under it)."""
+    from hdrcam.train.design import build_model
+
+    torch.manual_seed(1234)
+    expected = torch.rand(3)
+    torch.manual_seed(1234)
+    first = build_model(_tiny(doe=None, psf="dirac", seed=5), None, True)
+    assert torch.equal(torch.rand(3), expected)
+    second = build_model(_tiny(doe=None, psf="dirac", seed=5), None, True)
+    for name, value in first.network.state_dict().items():
+        assert torch.equal(value, second.network.state_dict()[name]), name
