@@ -8,7 +8,8 @@ them; the command line calls the same functions and only parses arguments and wr
     calibration = hdrcam.calibrate_psf(["pinholes"], profile="simulated", darks="pinholes/darks")
 
 Units: SI (seconds, metres); images are float32 H x W x 3 numpy arrays in linear light. Nothing heavy is
-imported before a function runs (torch only for design, finetune and evaluate).
+imported before a function runs (torch only where a network or an optical simulation runs: design, finetune,
+evaluate, and capture_bracket's simulated camera).
 """
 
 from __future__ import annotations
@@ -236,7 +237,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     partner trained continues the partner (from step 0 when it had saved no checkpoint yet) without training
     the finished main network again; give ``partner=False`` again to resume a run made without one. Returns
     the main run's last logged step (losses, seconds; {} when the main run had already finished);
-    :func:`finetuned_partner` names the partner written."""
+    ``hdrcam.stages.finetuned_partner(out)`` names the partner written."""
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
     from hdrcam.train.config import read_run_config

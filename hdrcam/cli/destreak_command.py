@@ -32,8 +32,8 @@ def register(commands) -> None:
                         help="with --method network: the windshield network (default: the shipped one)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--no-gate", dest="gate", action="store_false",
-                        help="with --method network: use the network's output everywhere, not only within "
-                             "the streaks' reach of a clipped light")
+                        help="with --method network: use the network's output everywhere (clipped channels "
+                             "excepted), not only within the streaks' reach of a clipped light")
     parser.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)

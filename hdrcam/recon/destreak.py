@@ -63,7 +63,8 @@ def destreak_frame(network: ReconstructionNet, frame: np.ndarray, *, psf_radius_
     keep the frame's value (a lower bound of their light: the network's I_U took 28 % of a streaked frame's
     clipped values below the clip level, so a later reconstruct saw those lights as less clipped).
 
-    ``gate`` False returns the network's I_U everywhere (for measuring what the gate is worth).
+    ``gate`` False returns the network's I_U everywhere but on clipped channels (for measuring what the gate is
+    worth).
     """
     started = time.perf_counter()
     weight = streak_zone(frame, psf_radius_px) if gate else np.ones(frame.shape[:2], np.float32)
