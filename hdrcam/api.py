@@ -62,8 +62,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     :class:`hdrcam.train.checkpoint.TrainedModel` (default: the shipped checkpoint) or any object with
     ``network`` and ``psf``. ``psf``: the (3, k, k) PSF the frame was taken through (a calibration's measured
     psf.exr, read with hdrcam.optics.psf_file.load_psf; default: the model's), normalised here to unit sum per
-    channel. Arrays and models, not files: a path is an InputError naming the reader to use. ``noise``: the camera's shot/read
-    noise (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read
+    channel. Arrays and models, not files: a path is an InputError naming the reader to use. ``noise``: the
+    camera's shot/read noise (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full
+    well and 4 e- read
     noise for a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the windows' largest
     core and their context, in pixels. ``partner``: a second model trained for the same PSF - "auto" (default):
     the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped checkpoint has
