@@ -65,9 +65,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     channel. Arrays and models, not files: a path is an InputError naming the reader to use. ``noise``: the
     camera's shot/read noise (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full
     well and 4 e- read noise for a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the
-    windows' largest core and their context, in pixels. ``partner``: a second model trained for the same PSF - "auto" (default):
-    the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped checkpoint has
-    one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the
+    windows' largest core and their context, in pixels. ``partner``: a second model trained for the same PSF -
+    "auto" (default): the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped
+    checkpoint has one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the
     network time) and only what both paint is kept (their per-pixel minimum), except on clusters whose streaks
     confirm one network's own proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three
     times): independently trained networks seldom paint the same window the frame cannot refute.
