@@ -59,18 +59,18 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
-    :class:`hdrcam.train.checkpoint.TrainedModel` (default: the shipped checkpoint) or any object with
-    ``network`` and ``psf``. ``psf``: the (3, k, k) PSF the frame was taken through (a calibration's measured
-    psf.exr, read with hdrcam.optics.psf_file.load_psf; default: the model's), normalised here to unit sum per
-    channel. Arrays and models, not files: a path is an InputError naming the reader to use. ``noise``: the
-    camera's shot/read noise (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full
-    well and 4 e- read noise for a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the
-    windows' largest core and their context, in pixels. ``partner``: a second model trained for the same PSF -
-    "auto" (default): the checkpoint NAME-partner.pt beside the model's NAME.pt where there is one (the shipped
-    checkpoint has one), None: the model alone, a checkpoint path, or a model. With a partner both networks run (twice the
-    network time) and only what both paint is kept (their per-pixel minimum), except on clusters whose streaks
-    confirm one network's own proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three
-    times): independently trained networks seldom paint the same window the frame cannot refute.
+    :class:`hdrcam.train.checkpoint.TrainedModel` (default: the shipped checkpoint) or any object with ``network``
+    and ``psf``. ``psf``: the (3, k, k) PSF the frame was taken through (a calibration's measured psf.exr, read with
+    hdrcam.optics.psf_file.load_psf; default: the model's), normalised here to unit sum per channel. Arrays and
+    models, not files: a path is an InputError naming the reader to use. ``noise``: the camera's shot/read noise
+    (default: that of the model's capture profile; :class:`NoiseModel`'s 25,000 e- full well and 4 e- read noise for
+    a model without one). ``tile_px`` (at least MIN_TILE_PX) and ``halo_px``: the windows' largest core and their
+    context, in pixels. ``partner``: a second model trained for the same PSF - "auto" (default): the checkpoint
+    NAME-partner.pt beside the model's NAME.pt where there is one (the shipped checkpoint has one), None: the model
+    alone, a checkpoint path, or a model. With a partner both networks run (twice the network time) and only what
+    both paint is kept (their per-pixel minimum), except on clusters whose streaks confirm one network's own
+    proposal beyond doubt (hdrcam.recon.network_agreement; the judge runs three times): independently trained
+    networks seldom paint the same window the frame cannot refute.
 
     Steps: the network runs on the regions around clipped pixels (hdrcam.recon.tiling); with ``mirror_check``
     (default) and a PSF equal to its mirror image, also on the mirrored frame, and only what both answers paint
