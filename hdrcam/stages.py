@@ -65,6 +65,11 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     from hdrcam.profiles import load_profile
 
     say = log or (lambda line: None)
+    for name, value in (("shortest_s", shortest_s), ("ev_step", ev_step), ("iso", iso)):
+        if isinstance(value, str):  # the command line's spelling: a TypeError deep in the plan
+            raise InputError(f"capture_bracket's {name} is a number (e.g. 1 / 4000), not the string {value!r}")
+    if size_px is not None and (isinstance(size_px, (int, str)) or len(size_px) != 2):
+        raise InputError(f"capture_bracket's size_px is (width, height) in pixels, not {size_px!r}")
     check_defect_settings(hot_pixel_fraction, exposure_error)  # before the folder is claimed
     chosen = load_profile(profile)
     folder = Path(out)
@@ -143,9 +148,13 @@ def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFI
     (H x W x 3 float32, relative radiance = full wells per second at ISO 100), ``clipped`` (H x W bool: a
     lower bound), ``variance`` (with ``with_variance``) and the merge's exposure estimates.
     """
+    from hdrcam.errors import InputError
     from hdrcam.hdr.fuse import fuse as fuse_bracket
+    from hdrcam.io.demosaic import FLOAT_METHODS
     from hdrcam.profiles import load_profile
 
+    if demosaic not in FLOAT_METHODS:
+        raise InputError(f"fuse's demosaic {demosaic!r}: one of {', '.join(FLOAT_METHODS)} (the merge is float data)")
     return fuse_bracket(_sources(bracket), load_profile(profile).camera,
                         darks=Path(darks) if darks else None, camera_rgb=camera_rgb, with_variance=with_variance,
                         demosaic_method=demosaic)

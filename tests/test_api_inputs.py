@@ -146,3 +146,16 @@ def test_files_where_arrays_belong_windshield_networks_and_unusable_devices_are_
     assert hdrcam.reconstruct(frame, model, tile_px=np.int64(256), partner=None).hdr.shape == frame.shape
     with pytest.raises(InputError, match="finetune's psf is a file, not a ndarray"):
         hdrcam.finetune(np.ones((3, 5, 5)), tmp_path / "run")
+
+
+def test_the_command_lines_spellings_given_to_capture_and_fuse_are_input_errors(tmp_path):
+    """camera='Sim' was a ValueError, shortest_s='1/4000' and size_px=64 TypeErrors from deep in the plan, and
+    fuse's demosaic='edge-aware' a ValueError that named it as a choice."""
+    for arguments, message in ((dict(camera="Sim"), "unknown camera 'Sim'"),
+                               (dict(shortest_s="1/4000"), "shortest_s is a number"),
+                               (dict(ev_step="2/3", stops=3), "ev_step is a number"),
+                               (dict(size_px=64), r"size_px is \(width, height\)")):
+        with pytest.raises(InputError, match=message):
+            hdrcam.capture_bracket(tmp_path / "bracket", **arguments)
+    with pytest.raises(InputError, match="fuse's demosaic 'edge-aware': one of bilinear, menon2007"):
+        hdrcam.fuse([tmp_path / "bracket"], demosaic="edge-aware")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from hdrcam.errors import InputError
+
 if TYPE_CHECKING:  # the command line reads CAMERA_KINDS without importing the simulation (torch)
     from hdrcam.capture.camera import Camera
     from hdrcam.capture.scene import Scene
@@ -31,7 +33,7 @@ def open_camera(kind: str, profile: Profile, *, scene: Scene | None = None, psf=
 
         return SonyA7Camera(), None
     if kind not in CAMERA_KINDS:
-        raise ValueError(f"unknown camera {kind!r}; choose from {', '.join(CAMERA_KINDS)}")
+        raise InputError(f"unknown camera {kind!r}; choose from {', '.join(CAMERA_KINDS)}")
     from hdrcam.capture.simulated import SimulatedCamera
 
     simulated = SimulatedCamera(profile, scene, psf, seed=seed, **simulation)
