@@ -68,8 +68,13 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     for name, value in (("shortest_s", shortest_s), ("ev_step", ev_step), ("iso", iso)):
         if isinstance(value, str):  # the command line's spelling: a TypeError deep in the plan
             raise InputError(f"capture_bracket's {name} is a number (e.g. 1 / 4000), not the string {value!r}")
-    if size_px is not None and (isinstance(size_px, (int, str)) or len(size_px) != 2):
-        raise InputError(f"capture_bracket's size_px is (width, height) in pixels, not {size_px!r}")
+    if size_px is not None:
+        try:
+            size_px = tuple(int(side) for side in size_px) if not isinstance(size_px, str) else ()
+        except (TypeError, ValueError):  # a number alone, a side that is no number
+            size_px = ()
+        if len(size_px) != 2:
+            raise InputError("capture_bracket's size_px is (width, height) in whole pixels")
     check_defect_settings(hot_pixel_fraction, exposure_error)  # before the folder is claimed
     chosen = load_profile(profile)
     folder = Path(out)
@@ -89,7 +94,8 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
                        ev_step=chosen.calibration.ev_step if ev_step is None else ev_step, iso=iso, auto=auto, roi=roi,
                        target_snr=chosen.calibration.target_snr, snr_percentile=chosen.calibration.snr_percentile)
     rendered = kernel = None
-    width, height = size_px if size_px and camera != "usb" else (chosen.camera.width_px, chosen.camera.height_px)
+    width, height = size_px if size_px is not None and camera != "usb" else \
+        (chosen.camera.width_px, chosen.camera.height_px)
     plan.check_roi_fits(width, height)  # before the folder is claimed (a real body's frame: its profile's size)
     if camera != "usb":
         if min(width, height) < SIMULATED_MIN_SIDE_PX:

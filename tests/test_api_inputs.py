@@ -159,3 +159,13 @@ def test_the_command_lines_spellings_given_to_capture_and_fuse_are_input_errors(
             hdrcam.capture_bracket(tmp_path / "bracket", **arguments)
     with pytest.raises(InputError, match="fuse's demosaic 'edge-aware': one of bilinear, menon2007"):
         hdrcam.fuse([tmp_path / "bracket"], demosaic="edge-aware")
+
+
+def test_capture_sizes_are_read_as_whole_pixels_and_a_number_alone_is_refused_in_one_line(tmp_path):
+    """np.int64(64) and 64.0 made the size check itself raise a bare TypeError ('has no len()'); a numpy pair
+    passed it and failed later on its truth value."""
+    for size in (np.int64(64), 64.0, "64x48", (64,)):
+        with pytest.raises(InputError, match=r"size_px is \(width, height\) in whole pixels"):
+            hdrcam.capture_bracket(tmp_path / "bracket", size_px=size)
+    bracket, _ = hdrcam.capture_bracket(tmp_path / "bracket", size_px=np.array([96, 64]), stops=2)
+    assert bracket.status == "complete"

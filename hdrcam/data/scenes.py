@@ -38,16 +38,18 @@ TRAINING_DRAWS = 16  # crops drawn in a row before a training scene without ligh
 def parse_mixture(data: str) -> list[tuple[str, float]]:
     """``SOURCE[:WEIGHT],...`` -> [(source, weight)]; a source without a weight weighs 1. A folder whose own name
     holds a ',' or ends in ':NUMBER' is taken as itself when it exists (``data/shoot:2`` trained on ``data/shoot``
-    with weight 2), and refused as ambiguous when the split reading names an existing folder too."""
-    if str(data) not in ("", PROCEDURAL) and Path(str(data)).exists():
-        return [(str(data), 1.0)]
+    with weight 2), and refused as ambiguous when the split reading names existing sources too."""
+    text = str(data)
+    if text not in ("", PROCEDURAL) and Path(text).exists():
+        split = [_weighted(entry) for entry in text.split(",")]
+        if split != [(text, 1.0)] and all(source == PROCEDURAL or Path(source).exists() for source, _ in split):
+            raise InputError(f"--data {text!r}: a folder of that name, and the mixture "
+                             f"{', '.join(f'{source} with weight {weight:g}' for source, weight in split)} too; "
+                             "rename the folder")
+        return [(text, 1.0)]
     mixture = []
-    for entry in str(data).split(","):
-        source, _, weight = entry.rpartition(":")
-        try:
-            weighted = (source, float(weight)) if source else (entry, 1.0)
-        except ValueError:
-            weighted = (entry, 1.0)  # a ':' inside a path, not a weight
+    for entry in text.split(","):
+        weighted = _weighted(entry)
         if weighted[0] != entry and Path(entry).exists():
             if Path(weighted[0]).exists():
                 raise InputError(f"--data {data!r}: {entry} is a folder, and {weighted[0]} with weight {weighted[1]:g} "
@@ -59,6 +61,15 @@ def parse_mixture(data: str) -> list[tuple[str, float]]:
             or not math.isfinite(sum(weights)):
         raise InputError(f"--data {data!r}: expected SOURCE[:WEIGHT],... with positive, finite weights")
     return mixture
+
+
+def _weighted(entry: str) -> tuple[str, float]:
+    """One SOURCE[:WEIGHT] entry read as written: (source, weight), weight 1 when none (or a ':' inside a path)."""
+    source, _, weight = entry.rpartition(":")
+    try:
+        return (source, float(weight)) if source else (entry, 1.0)
+    except ValueError:
+        return entry, 1.0
 
 
 def absolute_mixture(data: str) -> str:

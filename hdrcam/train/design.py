@@ -92,8 +92,8 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool,
         capture = OpticalCapture(profile, psf=psf, windshield=config.psf == "windshield")
     else:
         capture = OpticalCapture(profile, doe=config.doe, seed=config.seed)
-    with torch.random.fork_rng(devices=[]):  # the caller's random state is left as it was
-        torch.manual_seed(config.seed)  # the network's initial weights follow the run's seed
+    with torch.random.fork_rng(devices=[]):  # the caller's random state is left as it was (the weights are made
+        torch.random.default_generator.manual_seed(config.seed)  # on the CPU; manual_seed would reseed CUDA's too)
         network = ReconstructionNet(preset, vgg)
     if config.init_checkpoint and saved is None:
         state = read_checkpoint(recorded_checkpoint(config.init_checkpoint))

@@ -374,3 +374,16 @@ def test_a_training_photograph_smaller_than_a_training_scene_is_named_once_befor
     with pytest.warns(UserWarning, match=r"thumbnail\.exr: 60 x 40 px, smaller than the 96 px training") as caught:
         SceneSource(str(tmp_path)).check_training_folders(96)
     assert len(caught) == 1
+
+
+def test_a_folder_named_like_a_mixture_of_existing_folders_is_ambiguous_alone_too(tmp_path, monkeypatch):
+    """The whole --data naming a folder took it as itself even where its split reading names existing folders:
+    shoot:2 beside shoot, a,b beside a and b."""
+    from hdrcam.data.scenes import parse_mixture
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("shoot:2", "shoot", "a,b", "a", "b"):
+        (tmp_path / name).mkdir()
+    for data in ("shoot:2", "a,b"):
+        with pytest.raises(InputError, match="a folder of that name, and the mixture .* too"):
+            parse_mixture(data)
