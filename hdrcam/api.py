@@ -92,9 +92,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         from hdrcam.train.checkpoint import load_model
 
         model = load_model()
-    if getattr(model, "fixed_psf", None) == "windshield":
-        raise InputError(f"{getattr(model, 'source', 'the model')}: a windshield network (design --psf windshield): "
-                         "it removes windshield streaks (hdrcam destreak), not clipped highlights")
+    refuse_windshield_network(model)
     if noise is not None and not isinstance(noise, NoiseModel):
         raise InputError(f"noise {noise!r}: a hdrcam.recon.consistency.NoiseModel (full well and read noise, e-)")
     device = checked_device(device, dtype)
@@ -187,12 +185,20 @@ def load_network_model(path, *, vgg_weights=None):
                              network.metadata.get("hdrcam_fixed_psf"))
     else:
         model = load_model(path, vgg_weights=vgg_weights)
-    if model.fixed_psf == "windshield":
-        runs_it = "destreak runs it from the checkpoint it was exported from" if model.preset == "onnx" else \
-            f"hdrcam destreak --method network --checkpoint {model.source}"
-        raise InputError(f"{model.source}: a windshield network (design --psf windshield): it removes windshield "
-                         f"streaks ({runs_it}), not clipped highlights")
+    refuse_windshield_network(model)
     return model
+
+
+def refuse_windshield_network(model) -> None:
+    """InputError for a network trained behind windshield streaks (design --psf windshield): it removes streaks
+    (destreak), not clipped highlights; the message says how destreak runs it."""
+    if getattr(model, "fixed_psf", None) != "windshield":
+        return
+    source = getattr(model, "source", "the model")
+    runs_it = "destreak runs it from the checkpoint it was exported from" if getattr(model, "preset", "") == "onnx" \
+        else f"hdrcam destreak --method network --checkpoint {source}"
+    raise InputError(f"{source}: a windshield network (design --psf windshield): it removes windshield streaks "
+                     f"({runs_it}), not clipped highlights")
 
 
 def resolve_partner(model, partner="auto", *, vgg_weights=None):

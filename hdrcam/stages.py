@@ -154,13 +154,9 @@ def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFI
     (H x W x 3 float32, relative radiance = full wells per second at ISO 100), ``clipped`` (H x W bool: a
     lower bound), ``variance`` (with ``with_variance``) and the merge's exposure estimates.
     """
-    from hdrcam.errors import InputError
     from hdrcam.hdr.fuse import fuse as fuse_bracket
-    from hdrcam.io.demosaic import FLOAT_METHODS
     from hdrcam.profiles import load_profile
 
-    if demosaic not in FLOAT_METHODS:
-        raise InputError(f"fuse's demosaic {demosaic!r}: one of {', '.join(FLOAT_METHODS)} (the merge is float data)")
     return fuse_bracket(_sources(bracket), load_profile(profile).camera,
                         darks=Path(darks) if darks else None, camera_rgb=camera_rgb, with_variance=with_variance,
                         demosaic_method=demosaic)

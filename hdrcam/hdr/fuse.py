@@ -21,7 +21,7 @@ from hdrcam.colorimetry import camera_to_srgb_matrix
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
-from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
+from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS, demosaic
 from hdrcam.io.raw import RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
@@ -125,6 +125,9 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per
     second at ISO 100.
     """
+    if demosaic_method not in FLOAT_METHODS:  # before anything is read
+        raise InputError(f"fuse's demosaic {demosaic_method!r}: one of {', '.join(FLOAT_METHODS)} (the merge is float "
+                         "data)")
     frames = read_bracket(sources)
     if all(all_clipped(frame.bayer_dn, frame.clip_level_tile_dn) for frame in frames):
         raise InputError("every pixel is clipped in every frame: the bracket needs shorter exposures")
