@@ -5,7 +5,8 @@ OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with th
 (Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
 hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
 Rec. 2020, ...) is converted with Bradford adaptation between the white points (hdrcam.colorimetry; the
-attribute then no longer describes the pixels and is dropped); primaries that span no gamut (all zero, as some
+attribute then no longer describes the pixels and is dropped), unless the caller keeps the stored primaries
+(a captured frame: hdrcam.io.ldr_frame); primaries that span no gamut (all zero, as some
 writers store) count as absent. Damaged files raise :class:`~hdrcam.errors.InputError` with
 one line.
 
@@ -108,8 +109,10 @@ def _unreadable(path: Path, error: Exception) -> InputError:
     return InputError(f"{path}: not a readable OpenEXR file ({reason[:120]})")
 
 
-def read_exr(path: Path) -> ExrImage:
-    """Read an EXR file. Raises InputError for a missing, damaged or unsupported file."""
+def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
+    """Read an EXR file. Raises InputError for a missing, damaged or unsupported file. ``to_rec709`` False keeps
+    R, G, B in the file's own primaries (and its ``chromaticities`` attribute): a captured frame, whose clipped
+    samples are clipped per stored channel, which a matrix would mix."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -138,7 +141,7 @@ def read_exr(path: Path) -> ExrImage:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = _user_attributes(header)
-    matrix = to_rec709_matrix(header.get("chromaticities"))
+    matrix = to_rec709_matrix(header.get("chromaticities")) if to_rec709 else None
     if matrix is not None and {"R", "G", "B"} <= channels.keys():
         rgb = np.stack([channels[name] for name in "RGB"], axis=-1) @ matrix.T.astype(np.float32)
         channels.update(R=rgb[..., 0].copy(), G=rgb[..., 1].copy(), B=rgb[..., 2].copy())
@@ -153,9 +156,9 @@ COLOUR_CHANNEL_SETS = ({"R", "G", "B"}, {"Y", "RY", "BY"}, {"Y"})
 def _image_part(parts):
     """The part of a (multi-part) file that holds the image: the first with colour channels (a renderer may
     store depth or masks first), else the first part (a single-channel file: a height map); ValueError for a
-    file without parts (a truncated one)."""
+    file whose headers were read but no part decoded (OpenEXR's binding returns none for truncated pixel data)."""
     if not parts:
-        raise ValueError("no image part")
+        raise ValueError("its pixel data cannot be decoded: truncated or damaged")
     for channel_set in COLOUR_CHANNEL_SETS:
         for part in parts:
             if channel_set <= set(part.channels):

@@ -7,7 +7,9 @@
   No white balance or colour matrix: the network works in camera RGB, the space in which the PSF is measured.
   The frame stays in the sensor's orientation, as the PSF; ``read_ldr_frame_and_orientation`` also gives the
   file's EXIF Orientation code, for previews.
-- EXR: linear RGB taken as is (1.0 = white).
+- EXR: linear RGB taken as is (1.0 = white), in the primaries it was stored in (a ``chromaticities``
+  attribute is not applied: the frame is clipped per stored channel, which a matrix would mix, and the network
+  works in the camera's RGB; TIFF and PNG primaries are not applied either).
 - Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance).
 - 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
   clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs, PNGs whose colour chunks declare
@@ -60,7 +62,7 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
     suffix, orientation = path.suffix.lower(), 1
     if suffix == ".exr" or is_exr_file(path):
-        image = read_exr(path)
+        image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
         rgb, orientation = image.rgb(), exr_orientation(image.attributes)
     elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
         rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)

@@ -255,3 +255,14 @@ def test_subsampled_chroma_is_reconstructed_as_openexr_does(tmp_path):
     inner = (slice(14, -14), slice(14, -14))  # the filter reaches 13 samples; the edges are mirrored
     np.testing.assert_allclose(rgb[inner][..., 0], ((red_difference + 1) * luminance)[inner], rtol=2e-5)
     np.testing.assert_allclose(rgb[inner][..., 2], ((blue_difference + 1) * luminance)[inner], rtol=2e-5)
+
+
+def test_an_exr_cut_short_in_its_pixel_data_says_so(tmp_path):
+    """OpenEXR's binding decodes no part of a file cut short in its pixels (an interrupted copy): read_exr said
+    "no image part", as if the file held none."""
+    pixels = np.random.default_rng(0).random((256, 256, 3), np.float32)
+    write_exr(tmp_path / "whole.exr", pixels)
+    data = (tmp_path / "whole.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[:len(data) // 2])
+    with pytest.raises(InputError, match=r"cut.exr: .*truncated or damaged"):
+        read_exr(tmp_path / "cut.exr")

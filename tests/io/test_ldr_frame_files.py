@@ -227,3 +227,18 @@ def test_a_tiff_or_png_whose_icc_profile_encodes_its_values_is_refused_a_linear_
                 read_ldr_frame(tmp_path / name)
     if said is None:
         np.testing.assert_allclose(read_ldr_frame(tmp_path / "frame.tif"), counts / 65535.0, atol=1e-7)
+
+
+def test_an_exr_frame_keeps_its_stored_primaries_so_a_channel_clipped_alone_stays_clipped(tmp_path):
+    """A linear Rec. 2020 frame (a RAW developer's export names its primaries) was converted to Rec. 709 before the
+    frame checks: a light clipped in red alone came back at 1.47 ("not an LDR capture") and dark greens at -0.23
+    ("check how the file was made"). TIFF and PNG primaries are not applied either."""
+    import OpenEXR
+
+    rec2020 = (0.708, 0.292, 0.170, 0.797, 0.131, 0.046, 0.3127, 0.3290)
+    frame = np.full((16, 24, 3), 0.2, np.float32)
+    frame[:4, :4] = (1.0, 0.3, 0.2)  # a red lamp, clipped in red only
+    frame[8:, 8:] = (0.0, 0.5, 0.0)  # a saturated green
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": rec2020}, {"RGB": frame}).write(
+        str(tmp_path / "frame.exr"))
+    np.testing.assert_array_equal(read_ldr_frame(tmp_path / "frame.exr"), frame)
