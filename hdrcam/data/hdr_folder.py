@@ -1,4 +1,4 @@
-"""HDR images from a folder of OpenEXR (.exr) and Radiance (.hdr) files, linear RGB float32."""
+"""HDR images from a folder of OpenEXR (.exr) and Radiance (.hdr, .pic) files, linear RGB float32."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
-from hdrcam.io.radiance import is_radiance_file, read_radiance
+from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.tiff_image import read_tiff_rgb
 
-HDR_SUFFIXES = (".exr", ".hdr")
+HDR_SUFFIXES = (".exr", *RADIANCE_SUFFIXES)
 
 
 def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:

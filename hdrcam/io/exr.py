@@ -201,6 +201,8 @@ def _check_decoded_size(path: Path, headers: list[dict]) -> None:
 
 def _full_resolution(pixels: np.ndarray, x_sampling: int, y_sampling: int, height: int, width: int,
                      path: Path, name: str) -> np.ndarray:
+    if pixels.dtype == object:  # OpenEXR's binding: a list of samples per pixel
+        raise InputError(f"{path}: a deep image (several samples per pixel): hdrcam reads flat images")
     if pixels.dtype.kind not in "fu":
         raise InputError(f"{path}: channel {name} has unsupported pixel type {pixels.dtype}")
     pixels = pixels.astype(np.float32)

@@ -33,15 +33,14 @@ from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
 from hdrcam.io.file_magic import starts_with
-from hdrcam.io.png import declared_nonlinear_encoding
-from hdrcam.io.radiance import is_radiance_file, read_radiance
+from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
+from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
 from hdrcam.io.tiff_image import read_tiff_rgb, tiff_nonlinear_encoding
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 GAMMA_SUFFIXES = (".jpg", ".jpeg")
-RADIANCE_SUFFIXES = (".hdr", ".pic")
 JPEG_MAGIC = b"\xff\xd8\xff"
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
@@ -76,9 +75,12 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         elif image.dtype == np.uint16:
             rgb = image.astype(np.float32) / 65535.0
             _warn_plateau_below_white(path, image)
-        else:
-            raise InputError(f"{path}: {image.dtype} pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
+        elif image.dtype == np.uint8:
+            raise InputError(f"{path}: uint8 pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
                              "an EXR or a RAW file")
+        else:  # signed or 32-bit integers: no camera or converter writes frames so; their white is unknown
+            raise InputError(f"{path}: {image.dtype} samples, whose white level is unknown; give a 16-bit unsigned "
+                             "or float TIFF/PNG, an EXR or a RAW file")
     else:
         raw = read_raw(path)
         rgb, orientation = raw_relative_rgb(raw, demosaic_method), raw.metadata.orientation
@@ -103,6 +105,8 @@ def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
                          "file")
     if suffix != ".png":
         return read_tiff_rgb(path)
+    if grey := grey_png_kind(path):
+        raise InputError(f"{path}: a {grey} PNG (no colour samples): not an RGB image")
     with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 3 or image.shape[2] < 3:

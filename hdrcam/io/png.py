@@ -37,6 +37,20 @@ PNG_LINEAR_GAMMA = 100_000  # gAMA stores 100000 / the encoding exponent: 100000
 PNG_CICP_LINEAR = 8  # cICP transfer characteristics (ITU-T H.273): 8 is linear
 
 
+PNG_GREY_COLOUR_TYPES = {0: "grey", 4: "grey and alpha"}  # IHDR colour types (PNG specification, 11.2.2)
+
+
+def grey_png_kind(path: Path) -> str | None:
+    """"grey" or "grey and alpha" for a PNG whose IHDR declares no colour (OpenCV expands grey and alpha to four
+    channels, which read as RGB), else None (a colour PNG, or not a PNG)."""
+    with open(path, "rb") as file:
+        start = file.read(len(PNG_SIGNATURE) + 17)  # the signature, IHDR's length and type, width, height, depth
+        colour_type = file.read(1)
+    if not start.startswith(PNG_SIGNATURE) or start[12:16] != b"IHDR" or len(colour_type) != 1:
+        return None
+    return PNG_GREY_COLOUR_TYPES.get(colour_type[0])
+
+
 def declared_nonlinear_encoding(path: Path) -> str | None:
     """What a PNG's colour chunks (those before its image data) say of a non-linear encoding, by the PNG
     specification's precedence (cICP over iCCP over sRGB over gAMA): a cICP transfer other than linear, an ICC

@@ -29,6 +29,7 @@ from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.file_magic import starts_with
 from hdrcam.limits import check_image_size
 
+RADIANCE_SUFFIXES = (".hdr", ".pic")  # .pic: Radiance's own
 RADIANCE_MAGIC = b"#?"
 FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
 _RESOLUTION = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")

@@ -24,13 +24,13 @@ DECODED_COPY_BYTES = 12  # the float32 RGB image its callers make of the samples
 
 
 def read_tiff_samples(path: Path) -> np.ndarray:
-    """The first image of a TIFF file: H x W x samples in the stored type (a one-sample image is H x W);
+    """The first full-resolution image of a TIFF file: H x W x samples in the stored type (a one-sample image is H x W);
     InputError naming the file when it cannot be decoded or its samples are not RGB or grey."""
     import tifffile  # here: a GPU machine's training (tools/gpu) reads EXR and .hdr only, and lacks it
 
     try:
         with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
-            page = tiff.pages[0]
+            page = _full_resolution_page(tiff)
             photometric = page.photometric.name if page.photometric is not None else "unknown"
             if photometric not in COLOUR_PHOTOMETRICS:
                 raise InputError(f"{path}: TIFF of {photometric} samples, not RGB; save it as RGB")
@@ -50,6 +50,15 @@ def read_tiff_samples(path: Path) -> np.ndarray:
     return samples
 
 
+REDUCED_RESOLUTION = 1  # NewSubfileType bit 0 (TIFF 6.0, section 8): a reduced-resolution copy of another image
+
+
+def _full_resolution_page(tiff):
+    """The file's first full-resolution image: a writer may store a thumbnail (NewSubfileType bit 0 set) first,
+    which was read as the frame."""
+    return next((page for page in tiff.pages if not page.subfiletype & REDUCED_RESOLUTION), tiff.pages[0])
+
+
 ICC_PROFILE_TAG = 34675  # InterColorProfile (TIFF/EP, TIFF 6 technical note)
 
 
@@ -61,7 +70,7 @@ def tiff_nonlinear_encoding(path: Path) -> str | None:
 
     try:
         with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
-            tag = tiff.pages[0].tags.get(ICC_PROFILE_TAG)
+            tag = _full_resolution_page(tiff).tags.get(ICC_PROFILE_TAG)
             profile = bytes(tag.value) if tag is not None else None
     except Exception:  # noqa: BLE001 - read_tiff_samples names what is wrong with the file
         return None

@@ -266,3 +266,15 @@ def test_an_exr_cut_short_in_its_pixel_data_says_so(tmp_path):
     (tmp_path / "cut.exr").write_bytes(data[:len(data) // 2])
     with pytest.raises(InputError, match=r"cut.exr: .*truncated or damaged"):
         read_exr(tmp_path / "cut.exr")
+
+
+def test_a_deep_exr_is_refused_as_deep(tmp_path):
+    """A deep file's channels hold a list of samples per pixel: it was refused as "unsupported pixel type object"."""
+    samples = np.empty((4, 4), dtype=object)
+    for row in range(4):
+        for column in range(4):
+            samples[row, column] = np.array([0.5, 0.25], np.float32)
+    OpenEXR.File({"type": OpenEXR.deepscanline, "compression": OpenEXR.ZIPS_COMPRESSION},
+                 {"A": OpenEXR.Channel(samples)}).write(str(tmp_path / "deep.exr"))
+    with pytest.raises(InputError, match="deep image"):
+        read_exr(tmp_path / "deep.exr")

@@ -242,3 +242,50 @@ def test_an_exr_frame_keeps_its_stored_primaries_so_a_channel_clipped_alone_stay
     OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": rec2020}, {"RGB": frame}).write(
         str(tmp_path / "frame.exr"))
     np.testing.assert_array_equal(read_ldr_frame(tmp_path / "frame.exr"), frame)
+
+
+def test_a_tiff_whose_first_image_is_a_thumbnail_reads_its_full_resolution_image(tmp_path):
+    """A writer may store a reduced-resolution copy first (NewSubfileType bit 0): it was read as the frame."""
+    import tifffile
+
+    counts = (_gradient() * 65535).astype(np.uint16)
+    with tifffile.TiffWriter(tmp_path / "frame.tif") as tiff:
+        tiff.write(counts[::4, ::4], subfiletype=1, photometric="rgb")
+        tiff.write(counts, photometric="rgb")
+    np.testing.assert_array_equal(read_ldr_frame(tmp_path / "frame.tif"), counts / np.float32(65535))
+
+
+def test_grey_pngs_with_alpha_and_integer_tiffs_other_than_16_bit_unsigned_are_refused_for_what_they_are(tmp_path):
+    """OpenCV expands a grey-and-alpha PNG to four channels: it read as an RGB frame (plain grey was refused).
+    An int16 or uint32 TIFF was refused as "gamma-encoded"."""
+    import tifffile
+
+    import struct
+    import zlib
+
+    grey = (_gradient()[..., 0] * 65535).astype(">u2")
+    samples = np.stack([grey, np.full_like(grey, 65535)], axis=-1)  # 16-bit grey and alpha (colour type 4)
+    rows = b"".join(b"\0" + row.tobytes() for row in samples)  # filter type 0 per row
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    (tmp_path / "grey-alpha.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(
+        ">IIBBBBB", grey.shape[1], grey.shape[0], 16, 4, 0, 0, 0)) + chunk(b"IDAT", zlib.compress(rows)) +
+        chunk(b"IEND", b""))
+    assert cv2.imread(str(tmp_path / "grey-alpha.png"), cv2.IMREAD_UNCHANGED).shape == (*grey.shape, 4)
+    with pytest.raises(InputError, match="a grey and alpha PNG"):
+        read_ldr_frame(tmp_path / "grey-alpha.png")
+    tifffile.imwrite(tmp_path / "frame.tif", (_gradient() * 30000).astype(np.int16), photometric="rgb")
+    with pytest.raises(InputError, match="int16 samples, whose white level is unknown"):
+        read_ldr_frame(tmp_path / "frame.tif")
+
+
+def test_a_folder_of_radiance_pic_files_is_read_as_frames_are(tmp_path):
+    """.pic (Radiance's own suffix) was read as a frame but left out of --data folders."""
+    from hdrcam.data.hdr_folder import hdr_files
+
+    scene = np.full((16, 16, 3), 2.0, np.float32)
+    cv2.imwrite(str(tmp_path / "scene.hdr"), scene)
+    (tmp_path / "scene.hdr").rename(tmp_path / "scene.pic")
+    assert [path.name for path in hdr_files(tmp_path)] == ["scene.pic"]
