@@ -31,6 +31,10 @@ the whole transform of the DNG model, AnalogBalance x CameraCalibration x ColorM
 when its CameraCalibrationSignature matches the ProfileCalibrationSignature, as the DNG spec 1.2+ asks;
 phones' DNGs carry a per-unit calibration). A DNG that gives its as-shot white as AsShotWhiteXY instead of
 AsShotNeutral (LibRaw then reports no white balance) gets the neutral that white gives through that matrix.
+A file that records no as-shot white at all (a DNG with neither tag: LibRaw's camera_whitebalance [0, 1, 0, 0])
+is taken as shot in daylight - the neutral of D65 through its matrix, as LibRaw's
+LIBRAW_PROCESSING_CAMERAWB_FALLBACK_TO_DAYLIGHT does (rawpy's ``daylight_whitebalance``) - and
+``white_balance_source`` says so (its users warn); ones gave a strong green cast.
 """
 
 from __future__ import annotations
@@ -56,6 +60,11 @@ from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
 NO_COLOUR_MATRIX = "none (camera RGB)"
+AS_SHOT = "as shot"
+DAYLIGHT_ASSUMED = "daylight (assumed: the file records no as-shot white)"
+NO_WHITE_BALANCE = "none"
+_D65_XY = (0.3127, 0.3290)  # CIE 1931 chromaticity of D65, sRGB's white (IEC 61966-2-1), which LibRaw's daylight
+# white balance maps to camera RGB (its rgb_cam is XYZ -> camera times sRGB -> XYZ)
 UNKNOWN_CAMERA = "unknown"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
@@ -90,6 +99,8 @@ class RawMetadata:
     make: str = UNKNOWN_CAMERA
     file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
     colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
+    white_balance_source: str = AS_SHOT  # AS_SHOT (the file's, or its AsShotWhiteXY), DAYLIGHT_ASSUMED, or
+    # NO_WHITE_BALANCE (neither a white nor a usable matrix: as_shot_neutral is ones)
     shading_not_applied: tuple[str, ...] = ()  # DNG lens-shading opcodes left out (hdrcam.io.dng_opcodes)
     orientation: int = 1  # EXIF Orientation code (1 to 8) that displays the frame upright (6: turn 90 degrees
     # clockwise); the pixels and every size above stay in the sensor's orientation
@@ -253,14 +264,14 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 bayer = raw.raw_image_visible
                 bayer.flags.writeable = False
             matrix, matrix_source = _colour_matrix(np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64), tiff)
+            neutral, white_balance_source = _as_shot_neutral(np.array(raw.camera_whitebalance[:3], np.float64),
+                                                             tiff, matrix, matrix_source)
             metadata = RawMetadata(
                 path=path, width_px=int(raw.sizes.width), height_px=int(raw.sizes.height),
                 raw_size_px=(int(raw.sizes.raw_width), int(raw.sizes.raw_height)),
                 cfa_pattern="".join(_CFA_LETTERS[i] for i in tile),
                 black_level_dn=tuple(black[i] for i in tile), white_level_dn=float(raw.white_level),
-                xyz_to_camera=matrix,
-                as_shot_neutral=_as_shot_neutral(np.array(raw.camera_whitebalance[:3], np.float64), tiff, matrix,
-                                                 matrix_source),
+                xyz_to_camera=matrix, as_shot_neutral=neutral, white_balance_source=white_balance_source,
                 exposure_s=float(f"{other.shutter_speed:.7g}"),  # LibRaw keeps float32
                 iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
@@ -591,19 +602,24 @@ def _uncompressed_bytes(page) -> list[tuple[float, float]]:
 
 
 def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str
-                     ) -> np.ndarray:
-    """LibRaw's as-shot white balance, else a DNG's AsShotWhiteXY through the DNG's matrix, else ones."""
-    if not np.all(multipliers > 0) and tiff.as_shot_white_xy and source.startswith("DNG"):
-        x, y = tiff.as_shot_white_xy
-        neutral = xyz_to_camera @ np.array([x / y, 1.0, (1.0 - x - y) / y])
-        if np.all(neutral > 0):
-            return neutral / neutral.max()
-    return _neutral_from_multipliers(multipliers)
+                     ) -> tuple[np.ndarray, str]:
+    """(camera RGB of white, max 1; its ``white_balance_source``): LibRaw's as-shot white balance (the reciprocals
+    of its multipliers), else a DNG's AsShotWhiteXY through the DNG's matrix, else D65 through any usable matrix
+    (module docstring), else ones."""
+    if np.all(multipliers > 0):
+        neutral = 1.0 / multipliers
+        return neutral / neutral.max(), AS_SHOT
+    if tiff.as_shot_white_xy and source.startswith("DNG"):
+        neutral = _neutral_of_white(tiff.as_shot_white_xy, xyz_to_camera)
+        if neutral is not None:
+            return neutral, AS_SHOT
+    daylight = _neutral_of_white(_D65_XY, xyz_to_camera) if source != NO_COLOUR_MATRIX else None
+    return (np.ones(3), NO_WHITE_BALANCE) if daylight is None else (daylight, DAYLIGHT_ASSUMED)
 
 
-def _neutral_from_multipliers(multipliers: np.ndarray) -> np.ndarray:
-    """LibRaw white-balance multipliers -> as-shot neutral (their reciprocals, max 1); ones if unknown."""
-    if not np.all(multipliers > 0):
-        return np.ones(3)
-    neutral = 1.0 / multipliers
-    return neutral / neutral.max()
+def _neutral_of_white(white_xy: tuple[float, float], xyz_to_camera: np.ndarray) -> np.ndarray | None:
+    """Camera RGB (max 1) of the white of chromaticity ``white_xy`` (CIE 1931 x, y; Y = 1), or None when a channel
+    is not positive."""
+    x, y = white_xy
+    neutral = xyz_to_camera @ np.array([x / y, 1.0, (1.0 - x - y) / y])
+    return neutral / neutral.max() if np.all(neutral > 0) else None

@@ -356,6 +356,39 @@ def test_an_as_shot_white_given_as_xy_gives_the_neutral(tmp_path):
     assert np.allclose(read_raw_metadata(path).as_shot_neutral, neutral / neutral.max(), atol=1e-3)
 
 
+def test_a_dng_without_an_as_shot_white_is_balanced_for_daylight_and_says_so(tmp_path):
+    """A colour matrix but neither AsShotNeutral nor AsShotWhiteXY: LibRaw reports camera_whitebalance
+    [0, 1, 0, 0], and ones for the neutral left a D65-grey ramp at R/G 0.15, B/G 0.38 (a strong green cast) without
+    a word. D65 through the matrix, LibRaw's own daylight balance, keeps it grey, and fuse warns once."""
+    import warnings
+
+    import rawpy
+
+    from tests.io.realistic_dng import XYZ_TO_CAMERA
+
+    neutral = XYZ_TO_CAMERA @ np.array([0.3127 / 0.3290, 1.0, (1 - 0.3127 - 0.3290) / 0.3290])
+    neutral /= neutral.max()
+    height, width = 64, 96
+    ramp = 2.0 ** (8 + 6 * np.mgrid[0:height, 0:width][1] / (width - 1))  # DN per second at the brightest site
+    radiance = np.tile([[neutral[0], neutral[1]], [neutral[1], neutral[2]]], (height // 2, width // 2)) * ramp
+    rng = np.random.default_rng(4)
+    for exposure in (0.01, 0.04, 0.16):
+        path = write_dng(tmp_path / f"f{exposure}.dng", sensor_dn(radiance, exposure, rng), exposure_s=exposure)
+        _with_tags(path, [], drop={50728})  # AsShotNeutral out
+    meta = read_raw_metadata(path)
+    with rawpy.imread(str(path)) as raw:
+        assert raw.camera_whitebalance[0] == 0
+        daylight = 1.0 / np.array(raw.daylight_whitebalance[:3])
+    assert np.allclose(meta.as_shot_neutral, daylight / daylight.max(), atol=1e-3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        image = fuse([tmp_path], CAMERA)
+    said = [str(w.message) for w in caught if "assumed to be daylight" in str(w.message)]
+    assert len(said) == 1, said
+    grey = image.rgb[8:-8, 8:-8].reshape(-1, 3)
+    assert abs(np.median(grey[:, 0] / grey[:, 1]) - 1) < 0.03 and abs(np.median(grey[:, 2] / grey[:, 1]) - 1) < 0.03
+
+
 def _gain_map_opcode_list(height: int, width: int) -> bytes:
     """An OpcodeList (big-endian) holding one GainMap (ID 9) of 2 x 2 gains over the whole image."""
     parameters = struct.pack(">IIIIIIII", 0, 0, height, width, 0, 1, 1, 1) + struct.pack(">II", 2, 2)
