@@ -9,7 +9,9 @@ CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest ca
 The pixels stay in the sensor's orientation (the PSF is measured and the CFA is laid out there);
 ``RawMetadata.orientation`` says how to display them (the EXIF Orientation code, from LibRaw's ``sizes.flip``).
 
-Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
+Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), a greyscale TIFF image
+(a raw developer's black-and-white export, which LibRaw takes for a mosaic RAW: :func:`_is_greyscale_image`),
+sensors that are
 not a 2 x 2 Bayer mosaic on a square grid (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's
 Quad-Bayer, Nona-Bayer or staggered CFA, a visible area LibRaw places outside its raw data),
 and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
@@ -242,6 +244,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if tiff.data_end_bytes > tiff.file_bytes:
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
                          f"file ends at {tiff.file_bytes}; copy it from the card again")
+    if tiff.greyscale_image:  # before LibRaw, which decodes it as RGGB data or fails with a data error
+        raise NotRawError(f"{path}: a greyscale TIFF image (one sample a pixel, no CFA or DNG tags: a raw developer's "
+                          "black-and-white export?), not a RAW file")
     if tiff.file_bytes < LIBRAW_HEADER_BYTES:  # LibRaw reports an I/O error for these, as for a damaged file
         raise NotRawError(f"{path}: LibRaw does not open it as RAW (only {tiff.file_bytes} bytes: no RAW header)")
     raw, bayer = rawpy.RawPy(), None
@@ -460,6 +465,7 @@ class _TiffFacts:
     cfa_codes: tuple[int, ...] = ()  # its CFAPattern, row-major (0 R, 1 G, 2 B, ...)
     cfa_layout: int | None = None  # its CFALayout (1: a square grid; 2 to 9: staggered)
     active_area_origin: tuple[int, int] = (0, 0)  # its ActiveArea's top row and left column
+    greyscale_image: bool = False  # an image, not RAW: :func:`_is_greyscale_image`
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -487,6 +493,7 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             pages = list(_all_pages(tiff))
+            facts.greyscale_image = facts.file_format != "DNG" and _is_greyscale_image(pages, facts.make or "")
             ends = [_data_end(page) for page in pages]
             facts.data_end_bytes = max((end for end, _ in ends), default=0)
             facts.data_end_checked = facts.data_end_bytes > 0 and all(trusted for _, trusted in ends)
@@ -506,6 +513,22 @@ def _tiff_facts(path: Path) -> _TiffFacts:
     finally:
         _reading_tiff_facts.active = False
     return facts
+
+
+_GREYSCALE_PHOTOMETRIC = (0, 1)  # TIFF 6.0 PhotometricInterpretation WhiteIsZero, BlackIsZero
+_CFA_TAGS = (33421, 33422)  # TIFF/EP CFARepeatPatternDim, CFAPattern (not EXIF's CFAPattern, which exports copy)
+
+
+def _is_greyscale_image(pages: list, make: str) -> bool:
+    """True for a TIFF whose every image (IFD0, SubIFDs and others) has one sample a pixel, a greyscale
+    PhotometricInterpretation and no TIFF/EP CFA tags: a raw developer's 16-bit black-and-white export, which
+    LibRaw decodes as mosaic data with a default RGGB pattern, or fails on with a data error (LibRaw's apply_tiff,
+    src/metadata/tiff.cpp, turns such TIFFs away at 8 bits only). Not for the makes apply_tiff accepts them from
+    at 8 bits too (make starting "Phase" or "Leaf", or containing "Kodak": backs that store their mosaic so)."""
+    if not pages or make.startswith(("Phase", "Leaf")) or "kodak" in make.lower():
+        return False
+    return all(262 in page.tags and page.tags[262].value in _GREYSCALE_PHOTOMETRIC and page.samplesperpixel == 1
+               and not any(code in page.tags for code in _CFA_TAGS) for page in pages)
 
 
 def _text(tags, code: int) -> str | None:
