@@ -389,6 +389,31 @@ def test_a_dng_without_an_as_shot_white_is_balanced_for_daylight_and_says_so(tmp
     assert abs(np.median(grey[:, 0] / grey[:, 1]) - 1) < 0.03 and abs(np.median(grey[:, 2] / grey[:, 1]) - 1) < 0.03
 
 
+@pytest.mark.parametrize("masked", [False, True])
+def test_a_dngs_black_level_tags_are_read_as_written(tmp_path, masked):
+    """Fractional BlackLevel values per position (a 2 x 2 BlackLevelRepeatDim) and BlackLevelDeltaV on each row
+    (an Adobe-converted Canon 400D: BlackLevel 0, 256 in DeltaV) give the black level of each position as written
+    (DNG spec 1.4, chapter 6). LibRaw rounds fractional levels to whole DN and, with MaskedAreas, replaces the tags
+    by its measurement of those areas (here dark-current-free masked pixels at 250 DN)."""
+    height, width = 64, 96
+    full = np.full((height + 4, width + 4), 250, np.uint16)
+    signal = sensor_dn(_scene(height, width) / 50, 0.004, np.random.default_rng(15), black_dn=(0, 0, 0, 0))
+    fractional = (512.25, 512.5, 512.5, 512.75)
+    full[4:, 4:] = signal + np.tile(np.reshape(fractional, (2, 2)), (height // 2, width // 2)).round().astype(np.uint16)
+    path = write_dng(tmp_path / "f.dng", full)
+    tags = [(50829, "I", 4, (4, 4, height + 4, width + 4), True),  # ActiveArea: top, left, bottom, right
+            (50714, "2I", 4, _srationals(fractional), True)]  # BlackLevel, RATIONAL
+    if masked:
+        tags += [(50830, "I", 4, (4, 0, height + 4, 2), True)]  # MaskedAreas: the two columns on the left
+    _with_tags(path, tags, drop={50714})
+    assert read_raw_metadata(path).black_level_dn == fractional
+    full[4:, 4:] = signal + 256
+    path = write_dng(tmp_path / "canon.dng", full)
+    _with_tags(path, [tags[0], (50714, "H", 1, (0,), True), (50713, "H", 2, (1, 1), True),
+                      (50716, "2i", height, (25600, 100) * height, True)] + tags[2:], drop={50713, 50714})
+    assert read_raw_metadata(path).black_level_dn == (256.0,) * 4
+
+
 def _gain_map_opcode_list(height: int, width: int) -> bytes:
     """An OpcodeList (big-endian) holding one GainMap (ID 9) of 2 x 2 gains over the whole image."""
     parameters = struct.pack(">IIIIIIII", 0, 0, height, width, 0, 1, 1, 1) + struct.pack(">II", 2, 2)
