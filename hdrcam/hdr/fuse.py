@@ -22,7 +22,7 @@ from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
 from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS, demosaic
-from hdrcam.io.raw import RawFrame, RawMetadata
+from hdrcam.io.raw import DAYLIGHT_ASSUMED, RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
@@ -147,6 +147,9 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         warnings.warn(f"{meta.path.name}: no usable colour matrix (LibRaw's and the DNG tags' are missing or "
                       "zero): the output stays in camera RGB")
     elif not camera_rgb:
+        if meta.white_balance_source == DAYLIGHT_ASSUMED:
+            warnings.warn(f"{meta.path.name}: the file records no as-shot white (DNG AsShotNeutral or "
+                          "AsShotWhiteXY): the white balance is assumed to be daylight (D65)")
         matrix = camera_to_srgb_matrix(meta.xyz_to_camera, meta.as_shot_neutral).astype(np.float32)
         transformed(rgb, matrix)
         if variance is not None:

@@ -40,7 +40,7 @@ from hdrcam.capture.notches import true_exposure_s
 from hdrcam.hdr.exposure_ratios import estimate_exposures
 from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import is_in_top_part, sensor_white_dn, tiled
+from hdrcam.io.raw_clipping import SEARCH_FROM, is_in_top_part, sensor_white_dn, straddles_top_part, tiled
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
@@ -194,6 +194,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     clip_tile = clip_level_tile_dn(frames)
     white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
     _warn_if_white_unconfirmed(frames[-1], white, black, clip_tile)
+    _warn_if_levels_straddle(clip_tile, meta.black_level_tile(), meta.white_level_dn)
     noise = NoiseModel.from_camera(camera, iso, white, black)
     if scene_fills_frame:
         _warn_if_no_light(frames[-1], black, noise)
@@ -275,6 +276,18 @@ def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: flo
                       f"{longest.metadata.path.name}) stays below the top half of the range to the white level "
                       f"{white_dn:g} DN: the radiance scale (full wells) assumes that white level; if the sensor "
                       "clips lower, add a frame long enough to clip")
+
+
+def _warn_if_levels_straddle(clip_tile_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float) -> None:
+    """Warn when some CFA positions clip below the top part of the black-to-white range and others within it.
+    One sensor clips every position at about one level (hdrcam.io.raw_clipping), so one of the two is not the
+    sensor's white; the radiance scale takes the metadata's (:func:`sensor_white_dn`), which may be that far off."""
+    if straddles_top_part(clip_tile_dn, black_tile_dn, white_level_dn):
+        start_dn = float(np.mean(black_tile_dn)) + SEARCH_FROM * (white_level_dn - float(np.mean(black_tile_dn)))
+        warnings.warn(f"the CFA positions' clip levels ({', '.join(f'{v:g}' for v in clip_tile_dn.ravel())} DN) "
+                      f"lie both below and above {start_dn:g} DN, half way to the white level {white_level_dn:g} "
+                      "DN, where one sensor clips all of them at about one level: the radiance scale assumes the "
+                      "white level, and may be off by their ratio")
 
 
 def _warn_if_no_light(longest: RawFrame, black_dn: float, noise: NoiseModel) -> None:

@@ -9,7 +9,9 @@ CR2, DNG, ... are TIFF files) when LibRaw has nothing, and a capture manifest ca
 The pixels stay in the sensor's orientation (the PSF is measured and the CFA is laid out there);
 ``RawMetadata.orientation`` says how to display them (the EXIF Orientation code, from LibRaw's ``sizes.flip``).
 
-Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), sensors that are
+Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), a greyscale TIFF image
+(a raw developer's black-and-white export, which LibRaw takes for a mosaic RAW: :func:`_is_greyscale_image`),
+sensors that are
 not a 2 x 2 Bayer mosaic on a square grid (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's
 Quad-Bayer, Nona-Bayer or staggered CFA, a visible area LibRaw places outside its raw data),
 and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
@@ -31,6 +33,15 @@ the whole transform of the DNG model, AnalogBalance x CameraCalibration x ColorM
 when its CameraCalibrationSignature matches the ProfileCalibrationSignature, as the DNG spec 1.2+ asks;
 phones' DNGs carry a per-unit calibration). A DNG that gives its as-shot white as AsShotWhiteXY instead of
 AsShotNeutral (LibRaw then reports no white balance) gets the neutral that white gives through that matrix.
+A file that records no as-shot white at all (a DNG with neither tag: LibRaw's camera_whitebalance [0, 1, 0, 0])
+is taken as shot in daylight - the neutral of D65 through its matrix, as LibRaw's
+LIBRAW_PROCESSING_CAMERAWB_FALLBACK_TO_DAYLIGHT does (rawpy's ``daylight_whitebalance``) - and
+``white_balance_source`` says so (its users warn); ones gave a strong green cast.
+
+Black (DNG): the BlackLevel tags themselves, as floats (:func:`_dng_black_tile`): LibRaw rounds a fractional
+BlackLevel to whole DN and, where the file has MaskedAreas, replaces the tags' level by its own whole-DN
+measurement of those areas (shadows 7-18 % too bright: a level 1 DN low at 6-12 DN of signal). Other formats:
+LibRaw's black level per colour.
 """
 
 from __future__ import annotations
@@ -56,6 +67,11 @@ from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
 NO_COLOUR_MATRIX = "none (camera RGB)"
+AS_SHOT = "as shot"
+DAYLIGHT_ASSUMED = "daylight (assumed: the file records no as-shot white)"
+NO_WHITE_BALANCE = "none"
+_D65_XY = (0.3127, 0.3290)  # CIE 1931 chromaticity of D65, sRGB's white (IEC 61966-2-1), which LibRaw's daylight
+# white balance maps to camera RGB (its rgb_cam is XYZ -> camera times sRGB -> XYZ)
 UNKNOWN_CAMERA = "unknown"
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
@@ -90,6 +106,8 @@ class RawMetadata:
     make: str = UNKNOWN_CAMERA
     file_format: str = "unknown"  # "DNG", else the file's suffix, e.g. "ARW"
     colour_matrix_source: str = "LibRaw"  # "LibRaw", "DNG ColorMatrix1/2" or NO_COLOUR_MATRIX
+    white_balance_source: str = AS_SHOT  # AS_SHOT (the file's, or its AsShotWhiteXY), DAYLIGHT_ASSUMED, or
+    # NO_WHITE_BALANCE (neither a white nor a usable matrix: as_shot_neutral is ones)
     shading_not_applied: tuple[str, ...] = ()  # DNG lens-shading opcodes left out (hdrcam.io.dng_opcodes)
     orientation: int = 1  # EXIF Orientation code (1 to 8) that displays the frame upright (6: turn 90 degrees
     # clockwise); the pixels and every size above stay in the sensor's orientation
@@ -231,6 +249,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     if tiff.data_end_bytes > tiff.file_bytes:
         raise InputError(f"{path}: truncated or damaged: its image data runs to byte {tiff.data_end_bytes} but the "
                          f"file ends at {tiff.file_bytes}; copy it from the card again")
+    if tiff.greyscale_image:  # before LibRaw, which decodes it as RGGB data or fails with a data error
+        raise NotRawError(f"{path}: a greyscale TIFF image (one sample a pixel, no CFA or DNG tags: a raw developer's "
+                          "black-and-white export?), not a RAW file")
     if tiff.file_bytes < LIBRAW_HEADER_BYTES:  # LibRaw reports an I/O error for these, as for a damaged file
         raise NotRawError(f"{path}: LibRaw does not open it as RAW (only {tiff.file_bytes} bytes: no RAW header)")
     raw, bayer = rawpy.RawPy(), None
@@ -246,21 +267,21 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                                  f"({_libraw_reason(error)}); copy it from the card again") from None
             _check_bayer(path, raw, tiff)
             tile = raw.raw_pattern[:2, :2].ravel()
-            black = [float(b) for b in raw.black_level_per_channel]
+            black = tiff.dng_black_tile or tuple(float(raw.black_level_per_channel[i]) for i in tile)
             _check_black_placement(path, black, tiff)
             other = raw.other
             if with_pixels:  # a read-only view of LibRaw's buffer, which it keeps alive (no copy)
                 bayer = raw.raw_image_visible
                 bayer.flags.writeable = False
             matrix, matrix_source = _colour_matrix(np.array(raw.rgb_xyz_matrix[:3, :3], dtype=np.float64), tiff)
+            neutral, white_balance_source = _as_shot_neutral(np.array(raw.camera_whitebalance[:3], np.float64),
+                                                             tiff, matrix, matrix_source)
             metadata = RawMetadata(
                 path=path, width_px=int(raw.sizes.width), height_px=int(raw.sizes.height),
                 raw_size_px=(int(raw.sizes.raw_width), int(raw.sizes.raw_height)),
                 cfa_pattern="".join(_CFA_LETTERS[i] for i in tile),
-                black_level_dn=tuple(black[i] for i in tile), white_level_dn=float(raw.white_level),
-                xyz_to_camera=matrix,
-                as_shot_neutral=_as_shot_neutral(np.array(raw.camera_whitebalance[:3], np.float64), tiff, matrix,
-                                                 matrix_source),
+                black_level_dn=black, white_level_dn=float(raw.white_level),
+                xyz_to_camera=matrix, as_shot_neutral=neutral, white_balance_source=white_balance_source,
                 exposure_s=float(f"{other.shutter_speed:.7g}"),  # LibRaw keeps float32
                 iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
@@ -377,7 +398,7 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
 BAYER_TILES = ("RGGB", "BGGR", "GRBG", "GBRG")
 
 
-def _check_black_placement(path: Path, black_dn: list[float], tiff: "_TiffFacts") -> None:
+def _check_black_placement(path: Path, black_dn: tuple[float, ...], tiff: "_TiffFacts") -> None:
     """InputError for a DNG whose ActiveArea starts on an odd row or column and whose black level differs by
     colour site: LibRaw then rounds the margin to an even one and places the sites' black levels on the wrong
     sites (fused radiance 20x off on some, negative on others: measured), and hdrcam takes its levels."""
@@ -449,6 +470,8 @@ class _TiffFacts:
     cfa_codes: tuple[int, ...] = ()  # its CFAPattern, row-major (0 R, 1 G, 2 B, ...)
     cfa_layout: int | None = None  # its CFALayout (1: a square grid; 2 to 9: staggered)
     active_area_origin: tuple[int, int] = (0, 0)  # its ActiveArea's top row and left column
+    greyscale_image: bool = False  # an image, not RAW: :func:`_is_greyscale_image`
+    dng_black_tile: tuple[float, float, float, float] | None = None  # a DNG's BlackLevel tags per 2 x 2 position
 
 
 def _tiff_facts(path: Path) -> _TiffFacts:
@@ -476,6 +499,7 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             pages = list(_all_pages(tiff))
+            facts.greyscale_image = facts.file_format != "DNG" and _is_greyscale_image(pages, facts.make or "")
             ends = [_data_end(page) for page in pages]
             facts.data_end_bytes = max((end for end, _ in ends), default=0)
             facts.data_end_checked = facts.data_end_bytes > 0 and all(trusted for _, trusted in ends)
@@ -490,11 +514,50 @@ def _tiff_facts(path: Path) -> _TiffFacts:
                 facts.cfa_layout = int(mosaic[50711].value) if 50711 in mosaic else None
                 if 50829 in mosaic:  # ActiveArea: top, left, bottom, right
                     facts.active_area_origin = tuple(int(n) for n in tuple(mosaic[50829].value)[:2])
+                if any(code in mosaic for code in (50714, 50715, 50716)):
+                    facts.dng_black_tile = _dng_black_tile(mosaic)
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:
         _reading_tiff_facts.active = False
     return facts
+
+
+_GREYSCALE_PHOTOMETRIC = (0, 1)  # TIFF 6.0 PhotometricInterpretation WhiteIsZero, BlackIsZero
+_CFA_TAGS = (33421, 33422)  # TIFF/EP CFARepeatPatternDim, CFAPattern (not EXIF's CFAPattern, which exports copy)
+
+
+def _is_greyscale_image(pages: list, make: str) -> bool:
+    """True for a TIFF whose every image (IFD0, SubIFDs and others) has one sample a pixel, a greyscale
+    PhotometricInterpretation and no TIFF/EP CFA tags: a raw developer's 16-bit black-and-white export, which
+    LibRaw decodes as mosaic data with a default RGGB pattern, or fails on with a data error (LibRaw's apply_tiff,
+    src/metadata/tiff.cpp, turns such TIFFs away at 8 bits only). Not for the makes apply_tiff accepts them from
+    at 8 bits too (make starting "Phase" or "Leaf", or containing "Kodak": backs that store their mosaic so)."""
+    if not pages or make.startswith(("Phase", "Leaf")) or "kodak" in make.lower():
+        return False
+    return all(262 in page.tags and page.tags[262].value in _GREYSCALE_PHOTOMETRIC and page.samplesperpixel == 1
+               and not any(code in page.tags for code in _CFA_TAGS) for page in pages)
+
+
+def _dng_black_tile(tags) -> tuple[float, float, float, float]:
+    """The black level (DN, float) of each position of the 2 x 2 tile from a DNG raw image's tags (DNG spec 1.4,
+    chapter 6): a sample at row r, column c of the ActiveArea has BlackLevel[r % R][c % C] (R x C from
+    BlackLevelRepeatDim, default 1 x 1; BlackLevel default 0; SHORT, LONG or RATIONAL) + BlackLevelDeltaH[c] +
+    BlackLevelDeltaV[r] (SRATIONAL, one per column and row). Per position, the mean over its rows and columns:
+    the tile holds one level per position (a repeat of 1 or 2 and constant deltas, as converters write, are
+    exact). The tile starts at the ActiveArea's origin, where LibRaw's visible area starts (an odd origin is
+    refused when the positions differ: :func:`_check_black_placement`)."""
+    rows, columns = (int(n) for n in tags[50713].value) if 50713 in tags else (1, 1)
+    levels = _rational_values(tags[50714].value, rows * columns).reshape(rows, columns) if 50714 in tags \
+        else np.zeros((rows, columns))
+    repeated = np.tile(levels, (2, 2))  # 2R x 2C: a whole number of both the repeat and the 2 x 2 tile
+    tile = np.array([[repeated[row::2, column::2].mean() for column in range(2)] for row in range(2)])
+    for code, axis in ((50716, 0), (50715, 1)):  # DeltaV per row, DeltaH per column
+        if code in tags:
+            deltas = _rational_values(tags[code].value, tags[code].count)
+            means = [float(np.mean(deltas[phase::2])) if deltas[phase::2].size else 0.0 for phase in range(2)]
+            tile += np.array(means)[:, None] if axis == 0 else np.array(means)[None, :]
+    return tuple(float(b) for b in tile.ravel())
 
 
 def _text(tags, code: int) -> str | None:
@@ -591,19 +654,24 @@ def _uncompressed_bytes(page) -> list[tuple[float, float]]:
 
 
 def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str
-                     ) -> np.ndarray:
-    """LibRaw's as-shot white balance, else a DNG's AsShotWhiteXY through the DNG's matrix, else ones."""
-    if not np.all(multipliers > 0) and tiff.as_shot_white_xy and source.startswith("DNG"):
-        x, y = tiff.as_shot_white_xy
-        neutral = xyz_to_camera @ np.array([x / y, 1.0, (1.0 - x - y) / y])
-        if np.all(neutral > 0):
-            return neutral / neutral.max()
-    return _neutral_from_multipliers(multipliers)
+                     ) -> tuple[np.ndarray, str]:
+    """(camera RGB of white, max 1; its ``white_balance_source``): LibRaw's as-shot white balance (the reciprocals
+    of its multipliers), else a DNG's AsShotWhiteXY through the DNG's matrix, else D65 through any usable matrix
+    (module docstring), else ones."""
+    if np.all(multipliers > 0):
+        neutral = 1.0 / multipliers
+        return neutral / neutral.max(), AS_SHOT
+    if tiff.as_shot_white_xy and source.startswith("DNG"):
+        neutral = _neutral_of_white(tiff.as_shot_white_xy, xyz_to_camera)
+        if neutral is not None:
+            return neutral, AS_SHOT
+    daylight = _neutral_of_white(_D65_XY, xyz_to_camera) if source != NO_COLOUR_MATRIX else None
+    return (np.ones(3), NO_WHITE_BALANCE) if daylight is None else (daylight, DAYLIGHT_ASSUMED)
 
 
-def _neutral_from_multipliers(multipliers: np.ndarray) -> np.ndarray:
-    """LibRaw white-balance multipliers -> as-shot neutral (their reciprocals, max 1); ones if unknown."""
-    if not np.all(multipliers > 0):
-        return np.ones(3)
-    neutral = 1.0 / multipliers
-    return neutral / neutral.max()
+def _neutral_of_white(white_xy: tuple[float, float], xyz_to_camera: np.ndarray) -> np.ndarray | None:
+    """Camera RGB (max 1) of the white of chromaticity ``white_xy`` (CIE 1931 x, y; Y = 1), or None when a channel
+    is not positive."""
+    x, y = white_xy
+    neutral = xyz_to_camera @ np.array([x / y, 1.0, (1.0 - x - y) / y])
+    return neutral / neutral.max() if np.all(neutral > 0) else None

@@ -463,6 +463,53 @@ def test_a_white_level_of_65535_that_nothing_confirms_is_warned_about():
     assert merged.clip_level_dn == 16383 - 512
 
 
+@pytest.mark.parametrize("sensor_white_dn", [16383, 4095])
+def test_a_white_level_of_65535_over_a_sensor_whose_green_alone_clips_scales_by_the_sensors_white(sensor_white_dn):
+    """14- or 12-bit data declared with the DNG default white level 65535: green clips at the sensor's white in
+    the longest frame, red and blue (0.45 and 0.4 of green) never do. Their clip levels stayed at 65535, which
+    set the full well, and every radiance came out 4x (12-bit: 16x) too dark, without a warning; green's pile-up
+    is the sensor's white for every position. Noise-free frames of a known radiance ramp (relative units)."""
+    import dataclasses
+    import warnings
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    black = 512.0 if sensor_white_dn == 16383 else 128.0
+    meta = dataclasses.replace(meta, black_level_dn=(black,) * 4, white_level_dn=65535.0)
+    ramp = np.geomspace(0.02, 2.0, 64 * 96).reshape(64, 96)  # full wells in the longest frame (green)
+    radiance = ramp * np.tile([[0.45, 1.0], [1.0, 0.4]], (32, 48))  # relative units; the longest frame is 1 s
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=exposure),
+                       np.minimum(np.round(radiance * exposure * (sensor_white_dn - black) + black),
+                                  sensor_white_dn).astype(np.uint16)) for exposure in (1 / 16, 1 / 4, 1.0)]
+    assert frames[-1].bayer_dn[0::2, 0::2].max() < sensor_white_dn  # red never clips
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    valid = radiance > 0.05  # well above the rounding of every frame
+    np.testing.assert_allclose(merged.rate[valid], radiance[valid], rtol=5e-3)
+    assert np.all(merged.clip_level_tile_dn == sensor_white_dn)
+
+
+def test_clip_levels_on_both_sides_of_the_searched_range_are_warned_about():
+    """Red piling up at 40 000 DN, in the top half of 512..65535, green at 16 383, far below it (blue, with no
+    pile-up, takes green's): one of them is not the sensor's white, and the scale may be 2.5x off."""
+    import dataclasses
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    meta = dataclasses.replace(meta, white_level_dn=65535.0)
+    bayer = np.linspace(600, 50000, 64 * 96).reshape(64, 96)
+    bayer[0::2, 1::2] = np.minimum(bayer[0::2, 1::2], 16383)
+    bayer[1::2, 0::2] = np.minimum(bayer[1::2, 0::2], 16383)
+    bayer[1::2, 1::2] *= 0.2  # blue: no pile-up, so green's level
+    frame = RawFrame(meta, np.minimum(bayer, 40000).astype(np.uint16))
+    assert frame.clip_level_tile_dn.tolist() == [[40000, 16383], [16383, 16383]]
+    with pytest.warns(UserWarning, match=r"clip levels \(40000, 16383, 16383, 16383 DN\) lie both below and above"):
+        merge_bayer([frame], PROFILE.camera, estimate_ratios=False)
+
+
 def test_lights_given_as_their_own_darks_are_refused_and_darks_that_recorded_light_are_warned_about(tmp_path):
     import shutil
 

@@ -1,5 +1,6 @@
 """Follow-ups of the RAW audit: byte counts that overstate the data (Hasselblad 3FR), frames of two bodies in
-formats that name no camera (CR3, RAF, ...), and the refusal of Quad-Bayer and staggered DNGs named as such."""
+formats that name no camera (CR3, RAF, ...), the refusal of Quad-Bayer and staggered DNGs named as such, and
+greyscale TIFF exports refused as not RAW."""
 
 from __future__ import annotations
 
@@ -274,3 +275,25 @@ def test_rows_zero_filled_on_the_card_are_refused_as_damage(tmp_path):
     raw[40:52] = 512 + np.random.default_rng(1).integers(-3, 4, (12, 96))  # a black stripe with noise is data
     raw[45, :] = 512  # and so is one flat row at black
     read_raw(write_dng(tmp_path / "dark-stripe.dng", raw))
+
+
+@pytest.mark.parametrize("make, bits", [("Canon", 16), (None, 16), ("SONY", 8)])
+def test_a_raw_developers_greyscale_tiff_export_is_not_raw_and_a_folder_skips_it(tmp_path, make, bits):
+    """A black-and-white export (darktable, RawTherapee, Capture One: one 16-bit sample a pixel, BlackIsZero, the
+    raw's make and EXIF kept, no CFA or DNG tags): LibRaw decoded it as RGGB mosaic data (or failed on it with a
+    data error, which stopped a whole folder); it is refused as not RAW, before LibRaw, so a folder skips it."""
+    from hdrcam.io.raw import NotRawError
+
+    image = np.random.default_rng(0).integers(0, 2 ** bits, (64, 96)).astype(np.uint16 if bits == 16 else np.uint8)
+    tags = [(271, "s", 0, make, True), (272, "s", 0, f"{make} Body 1", True)] if make else []
+    tags.append((33434, "2I", 1, (1, 125), True))  # ExposureTime, which LibRaw reads from any IFD
+    export = tmp_path / "export.tif"
+    tifffile.imwrite(export, image, photometric="minisblack", software="darktable 4.6.1", extratags=tags,
+                     metadata=None)
+    with pytest.raises(NotRawError, match="export.tif: a greyscale TIFF image"):
+        read_raw(export)
+    for exposure in (0.01, 0.04):
+        write_dng(tmp_path / f"f{exposure}.dng", sensor_dn(_scene(), exposure, np.random.default_rng(1)),
+                  exposure_s=exposure)
+    with pytest.warns(UserWarning, match="skipped .*export.tif: a greyscale TIFF image"):
+        assert len(read_bracket([tmp_path])) == 2

@@ -356,6 +356,64 @@ def test_an_as_shot_white_given_as_xy_gives_the_neutral(tmp_path):
     assert np.allclose(read_raw_metadata(path).as_shot_neutral, neutral / neutral.max(), atol=1e-3)
 
 
+def test_a_dng_without_an_as_shot_white_is_balanced_for_daylight_and_says_so(tmp_path):
+    """A colour matrix but neither AsShotNeutral nor AsShotWhiteXY: LibRaw reports camera_whitebalance
+    [0, 1, 0, 0], and ones for the neutral left a D65-grey ramp at R/G 0.15, B/G 0.38 (a strong green cast) without
+    a word. D65 through the matrix, LibRaw's own daylight balance, keeps it grey, and fuse warns once."""
+    import warnings
+
+    import rawpy
+
+    from tests.io.realistic_dng import XYZ_TO_CAMERA
+
+    neutral = XYZ_TO_CAMERA @ np.array([0.3127 / 0.3290, 1.0, (1 - 0.3127 - 0.3290) / 0.3290])
+    neutral /= neutral.max()
+    height, width = 64, 96
+    ramp = 2.0 ** (8 + 6 * np.mgrid[0:height, 0:width][1] / (width - 1))  # DN per second at the brightest site
+    radiance = np.tile([[neutral[0], neutral[1]], [neutral[1], neutral[2]]], (height // 2, width // 2)) * ramp
+    rng = np.random.default_rng(4)
+    for exposure in (0.01, 0.04, 0.16):
+        path = write_dng(tmp_path / f"f{exposure}.dng", sensor_dn(radiance, exposure, rng), exposure_s=exposure)
+        _with_tags(path, [], drop={50728})  # AsShotNeutral out
+    meta = read_raw_metadata(path)
+    with rawpy.imread(str(path)) as raw:
+        assert raw.camera_whitebalance[0] == 0
+        daylight = 1.0 / np.array(raw.daylight_whitebalance[:3])
+    assert np.allclose(meta.as_shot_neutral, daylight / daylight.max(), atol=1e-3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        image = fuse([tmp_path], CAMERA)
+    said = [str(w.message) for w in caught if "assumed to be daylight" in str(w.message)]
+    assert len(said) == 1, said
+    grey = image.rgb[8:-8, 8:-8].reshape(-1, 3)
+    assert abs(np.median(grey[:, 0] / grey[:, 1]) - 1) < 0.03 and abs(np.median(grey[:, 2] / grey[:, 1]) - 1) < 0.03
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_a_dngs_black_level_tags_are_read_as_written(tmp_path, masked):
+    """Fractional BlackLevel values per position (a 2 x 2 BlackLevelRepeatDim) and BlackLevelDeltaV on each row
+    (an Adobe-converted Canon 400D: BlackLevel 0, 256 in DeltaV) give the black level of each position as written
+    (DNG spec 1.4, chapter 6). LibRaw rounds fractional levels to whole DN and, with MaskedAreas, replaces the tags
+    by its measurement of those areas (here dark-current-free masked pixels at 250 DN)."""
+    height, width = 64, 96
+    full = np.full((height + 4, width + 4), 250, np.uint16)
+    signal = sensor_dn(_scene(height, width) / 50, 0.004, np.random.default_rng(15), black_dn=(0, 0, 0, 0))
+    fractional = (512.25, 512.5, 512.5, 512.75)
+    full[4:, 4:] = signal + np.tile(np.reshape(fractional, (2, 2)), (height // 2, width // 2)).round().astype(np.uint16)
+    path = write_dng(tmp_path / "f.dng", full)
+    tags = [(50829, "I", 4, (4, 4, height + 4, width + 4), True),  # ActiveArea: top, left, bottom, right
+            (50714, "2I", 4, _srationals(fractional), True)]  # BlackLevel, RATIONAL
+    if masked:
+        tags += [(50830, "I", 4, (4, 0, height + 4, 2), True)]  # MaskedAreas: the two columns on the left
+    _with_tags(path, tags, drop={50714})
+    assert read_raw_metadata(path).black_level_dn == fractional
+    full[4:, 4:] = signal + 256
+    path = write_dng(tmp_path / "canon.dng", full)
+    _with_tags(path, [tags[0], (50714, "H", 1, (0,), True), (50713, "H", 2, (1, 1), True),
+                      (50716, "2i", height, (25600, 100) * height, True)] + tags[2:], drop={50713, 50714})
+    assert read_raw_metadata(path).black_level_dn == (256.0,) * 4
+
+
 def _gain_map_opcode_list(height: int, width: int) -> bytes:
     """An OpcodeList (big-endian) holding one GainMap (ID 9) of 2 x 2 gains over the whole image."""
     parameters = struct.pack(">IIIIIIII", 0, 0, height, width, 0, 1, 1, 1) + struct.pack(">II", 2, 2)
