@@ -13,18 +13,19 @@ JPEG only (0x5004 without its RAW bit) or on Bulb, and records focus mode, drive
 After the handshake the priority mode (0xD25A) is set to "application" with 0x9205, as libgphoto2 does;
 a body that does not know it answers with an error, which is logged and ignored.
 
-Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image
-still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2
-accepts for the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the
-image is ready. libgphoto2 reads that property two ways: its capture path (camera_sony_capture) takes
->= 0x8000 as ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e.
-0x8000 alone as none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not
-already read 0x8000 before the release; a count without the flag (the body still writing: "also turns to
-1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or
-early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and premature access can
-crash the firmware. Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not
-RAW is dropped and the next one awaited the same way. All vendor quirks live here; the generic PTP layer
-knows nothing of Sony.
+Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image still
+in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2 accepts for
+the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the image is
+ready. libgphoto2 reads that property two ways: its capture path (camera_sony_capture) takes >= 0x8000 as
+ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e. 0x8000 alone as
+none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not already read 0x8000
+before the release; for the next object of the same shot (RAW + JPEG) only if 0x8000 alone announced the one
+before (a body that announced it with a count means "empty" by 0x8000); a count without the flag (the body
+still writing: "also turns to 1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never
+taken as proof: a stale or early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and
+premature access can crash the firmware. Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the
+object that is not RAW is dropped and the next one awaited the same way. All vendor quirks live here; the
+generic PTP layer knows nothing of Sony.
 """
 
 from __future__ import annotations
@@ -351,9 +352,9 @@ class SonyA7Camera:
             with self._pressed(Property.SONY_FULL_PRESS):
                 pass
         timestamp = dt.datetime.now().replace(microsecond=0)
-        flag_alone_is_ready = before_release != SONY_PENDING_IMAGE_FLAG
-        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s, flag_alone_is_ready)
-        info, content = self._download_raw(CAPTURE_TIMEOUT_S, flag_alone_is_ready)
+        announced = self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s,
+                                         before_release != SONY_PENDING_IMAGE_FLAG)
+        info, content = self._download_raw(CAPTURE_TIMEOUT_S, announced)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
@@ -367,9 +368,12 @@ class SonyA7Camera:
             self._pause_for_events()
             self.refresh()
 
-    def _download_raw(self, timeout_s: float, flag_alone_is_ready: bool):
+    def _download_raw(self, timeout_s: float, announced: int):
         """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped and the
-        next one awaited as the first was (``flag_alone_is_ready``: how 0xD215 = 0x8000 reads for this shot)."""
+        next one awaited. ``announced`` is the 0xD215 value that said the object in memory was ready: 0x8000
+        alone then reads "ready" for the next one too, a count (0x8001 and up) says this body means "memory
+        empty" by 0x8000 (libgphoto2 camera_wait_for_event waits for more than 0x8000), whatever 0xD215 read
+        before the release (0 on a session's first shot)."""
         for _ in range(OBJECTS_PER_SHOT):
             info = self.session.object_info(SONY_IN_MEMORY_OBJECT)
             content = self.session.get_object(SONY_IN_MEMORY_OBJECT)
@@ -379,7 +383,7 @@ class SonyA7Camera:
             if info.object_format == SONY_RAW_FORMAT:
                 return info, content
             self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
-            self._wait_for_image(timeout_s, flag_alone_is_ready)
+            announced = self._wait_for_image(timeout_s, announced == SONY_PENDING_IMAGE_FLAG)
         raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
 
     def _press(self, button: int, state: int) -> None:
@@ -424,9 +428,9 @@ class SonyA7Camera:
             raise self._missing(code)
         return descriptor.current
 
-    def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> None:
+    def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> int:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
-        events only shorten the wait between polls."""
+        events only shorten the wait between polls. Returns the 0xD215 value that said so."""
         deadline = self.clock.monotonic() + timeout_s
         while not _image_ready(pending := self._current_after_refresh(Property.SONY_PENDING_IMAGES),
                                flag_alone_is_ready):
@@ -437,6 +441,7 @@ class SonyA7Camera:
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
                                        f"release{stuck}")
             self._pause_for_events()
+        return pending
 
     def _pause_for_events(self) -> None:
         """One poll interval between property reads: spent waiting on the interrupt pipe, which an event ends

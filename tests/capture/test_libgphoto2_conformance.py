@@ -235,10 +235,12 @@ def test_a_damaged_descriptor_ends_the_list_and_says_why():
     assert set(properties) == {Property.SONY_SHUTTER_SPEED} and "0x7777" in notes[0]
 
 
-def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
+@pytest.mark.parametrize("shots_before", [1, 0])
+def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path, shots_before):
     """RAW + JPEG on a body where 0xD215 = 0x8000 alone means memory empty: after the JPEG's download the RAW
-    appears 0.5 s later; with 0x8000 read before the release, the wait for the RAW must not take 0x8000 as ready
-    (asking 0xFFFFC001 early is the access libgphoto2 says can crash the firmware)."""
+    appears 0.5 s later; the wait for the RAW must not take 0x8000 as ready (asking 0xFFFFC001 early is the access
+    libgphoto2 says can crash the firmware) - neither with 0x8000 read before the release nor on the session's
+    first shot (0 before the release), where the JPEG announced with a count (0x8002) tells how 0x8000 reads."""
     camera, body = emulated(pending_flag_without_images=True, image_quality=0x13)
     read_bulk, advance, held = body.bulk_in, body._advance, {}
 
@@ -255,10 +257,11 @@ def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
             body._image, body._image_format, body._image_name = held.pop("raw")
 
     with camera:
-        camera.capture(tmp_path, "f0")  # 0xD215 reads 0x8000 from now on when memory is empty
+        for k in range(shots_before):
+            camera.capture(tmp_path, f"f{k}")  # 0xD215 reads 0x8000 from now on when memory is empty
         body.bulk_in, body._advance = bulk_in, delayed_advance
-        camera.capture(tmp_path, "f1")
-    assert body.premature_requests == 0 and body.downloads == 4
+        camera.capture(tmp_path, "f")
+    assert body.premature_requests == 0 and body.downloads == 2 * (shots_before + 1)
 
 
 def test_a_body_that_needs_its_startup_time_gets_it_before_the_first_press(tmp_path):
