@@ -105,7 +105,8 @@ class Faults:
     exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
     iso_multi_frame_nr: bool = False  # 0xD21E has Multi Frame Noise Reduction in its high byte
-    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only
+    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only;
+    # 0 as some bodies read it: the factory default (0x10) applies (library.c camera_sony_capture)
     reversed_shutter_steps: bool = False  # 0x9207 +1 makes the shutter longer (libgphoto2: +1 = shorter)
     focus_found_value: int = SONY_FOCUS_FOUND  # what 0xD213 reads once focused: 2, or 3 as on the RX0
     pending_flag_without_images: bool = False  # 0xD215 reads 0x8000 (flag, no images) once memory is empty

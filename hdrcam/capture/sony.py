@@ -230,7 +230,9 @@ class SonyA7Camera:
 
     def _check_ready_for_raw_brackets(self) -> None:
         """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only, a drive mode that takes
-        other than one frame per press at the shutter time set (the body's own bracket, continuous, self-timer)."""
+        other than one frame per press at the shutter time set (the body's own bracket, continuous, self-timer).
+        A quality (0x5004) reading 0 is the descriptor's factory default, as libgphoto2's camera_sony_capture
+        reads it (a current value 0 is replaced by FactoryDefaultValue)."""
         mode = self.properties.get(Property.EXPOSURE_PROGRAM_MODE)
         if mode is not None and mode.current != SONY_EXPOSURE_MODE_M:
             raise CameraError(f"the camera is not in manual exposure (mode 0x{mode.current:X}): turn the mode dial "
@@ -247,8 +249,9 @@ class SonyA7Camera:
         if iso is not None and iso.current >> SONY_ISO_NR_SHIFT:
             raise CameraError(_MFNR_MESSAGE)
         quality = self.properties.get(Property.IMAGE_QUALITY)
-        if quality is not None and not quality.current & SONY_RAW_QUALITY_FLAG:
-            raise CameraError(f"the camera records JPEG only (quality 0x{quality.current:02X}): set File Format to "
+        recorded = None if quality is None else quality.current or quality.factory_default
+        if recorded is not None and not recorded & SONY_RAW_QUALITY_FLAG:
+            raise CameraError(f"the camera records JPEG only (quality 0x{recorded:02X}): set File Format to "
                               "RAW (or RAW & JPEG) in the camera's menu")
 
     @property

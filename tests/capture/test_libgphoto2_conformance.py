@@ -4,6 +4,7 @@ where the wire is the point."""
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import pytest
@@ -115,6 +116,22 @@ def test_multi_frame_noise_reduction_is_refused_before_any_shot():
         with camera:
             pass
     assert body.shots == []
+
+
+def test_image_quality_0_is_read_as_its_factory_default(tmp_path):
+    """library.c camera_sony_capture: a 0x5004 current value 0 stands for the descriptor's FactoryDefaultValue
+    (0x10, RAW, on the emulated body); it was refused as JPEG only. A JPEG factory default is still refused."""
+    camera, body = emulated(image_quality=0)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.path.suffix == ".dng" and len(body.shots) == 1
+    camera, body = emulated(image_quality=0)
+    descriptors = body._descriptors
+    body._descriptors = lambda: [dataclasses.replace(d, factory_default=0x03) if d.code == Property.IMAGE_QUALITY
+                                 else d for d in descriptors()]
+    with pytest.raises(CameraError, match=r"JPEG only \(quality 0x03\)"):
+        with camera:
+            pass
 
 
 def test_descriptors_with_a_second_enumeration_list_are_read():
