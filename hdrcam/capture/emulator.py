@@ -105,6 +105,9 @@ class Faults:
     exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
     iso_multi_frame_nr: bool = False  # 0xD21E has Multi Frame Noise Reduction in its high byte
+    iso_max: int | None = None  # the body offers ISO up to this only: 0xD21E lists no more, a step stops there
+    iso_listed_beyond_max: bool = False  # with iso_max, 0xD21E still lists the ISOs above it (config.c: Sony
+    # "seems to report values in an enum that are not actually supported under certain configurations (e.g. ISO)")
     image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only;
     # 0 as some bodies read it: the factory default (0x10) applies (library.c camera_sony_capture)
     reversed_shutter_steps: bool = False  # 0x9207 +1 makes the shutter longer (libgphoto2: +1 = shorter)
@@ -465,13 +468,19 @@ class EmulatedSonyA7:
                 index = min(max(self.camera.notch.index + delta, 0), len(SHUTTER_NOTCHES) - 1)
                 self.camera.set_notch(SHUTTER_NOTCHES[index])
             else:
-                index = min(max(ISO_VALUES.index(int(self.camera.settings().iso)) + delta, 0), len(ISO_VALUES) - 1)
-                self.camera.set_iso(ISO_VALUES[index])
+                offered = self._offered_isos()
+                index = min(max(offered.index(int(self.camera.settings().iso)) + delta, 0), len(offered) - 1)
+                self.camera.set_iso(offered[index])
             self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
         if self._image_due_s is not None and now >= self._image_due_s:
             self._image_due_s = None
             if not self.faults.early_object_added:
                 self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+
+    def _offered_isos(self) -> tuple[int, ...]:
+        """The ISOs this body steps through (Faults.iso_max)."""
+        top = self.faults.iso_max
+        return ISO_VALUES if top is None else ISO_VALUES[:ISO_VALUES.index(top) + 1]
 
     def _focus_found(self) -> int:
         """0xD213: 2 once an AF body has focused after the half press, else 1."""
@@ -496,11 +505,12 @@ class EmulatedSonyA7:
         iso = ISO_AUTO if faults.iso_auto else int(settings.iso)
         if faults.iso_multi_frame_nr:
             iso |= 1 << 24
-        secondary = (*ISO_VALUES, ISO_AUTO) if faults.secondary_enumerations else None
+        listed = ISO_VALUES if faults.iso_listed_beyond_max else self._offered_isos()
+        secondary = (*listed, ISO_AUTO) if faults.secondary_enumerations else None
         descriptors = [
             PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
             PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
-                               (*ISO_VALUES, ISO_AUTO), secondary),
+                               (*listed, ISO_AUTO), secondary),
             *([PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100))]
               if faults.lens_reports_aperture else []),
             PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),

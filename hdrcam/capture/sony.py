@@ -50,7 +50,7 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VE
                                       SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
                                       SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Operation,
                                       Property, Response)
-from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
+from hdrcam.capture.ptp.datasets import FORM_ENUMERATION, PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
@@ -301,10 +301,11 @@ class SonyA7Camera:
     def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
         if exposure_s is not None:
             target = nearest_shutter(exposure_s).index
-            self._step_to(Property.SONY_SHUTTER_SPEED, target,
-                          lambda value: _notch(value).index, len(SHUTTER_NOTCHES))
+            self._step_to(Property.SONY_SHUTTER_SPEED, target, lambda value: _notch(value).index,
+                          len(SHUTTER_NOTCHES), lambda index: f"shutter {SHUTTER_NOTCHES[index].label}")
         if iso is not None:
-            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES))
+            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES),
+                          lambda index: f"ISO {ISO_VALUES[index]}")
         return self.settings()
 
     @staticmethod
@@ -316,10 +317,14 @@ class SonyA7Camera:
             raise CameraError("ISO is on Auto or an extended value: set a fixed ISO between 100 and 25600")
         return ISO_VALUES.index(value)
 
-    def _step_to(self, code: int, target: int, index_of, notches: int) -> None:
-        """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot."""
+    def _step_to(self, code: int, target: int, index_of, notches: int, name_of) -> None:
+        """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot. A target the
+        body does not offer is refused before any step (``_check_offered``); a step that changes nothing after
+        earlier steps landed (the body is on M) is the end of the body's list: the target is not offered."""
+        self._check_offered(code, target, index_of, name_of)
         budget = 2 * notches
         position = index_of(self._current(code))
+        moved = False
         while position != target:
             if budget == 0:
                 raise CameraError(f"could not step property 0x{code:04X} to notch {target} (stuck at {position})")
@@ -327,20 +332,44 @@ class SonyA7Camera:
             direction = 1 if target > position else -1
             self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, code,
                                   data_out=_step_data(direction * self._step_sign[code]))
-            landed = self._wait_for_change(code, position, index_of)
+            landed = self._wait_for_change(code, position, index_of, (
+                f"{name_of(target)} is not offered by this body: it steps no further than {name_of(position)}"
+                if moved else None))
+            moved = True
             if (landed - position) * direction < 0:  # the camera counts the other way: learn it
                 self._step_sign[code] = -self._step_sign[code]
             position = landed  # an overshoot is stepped back on the next pass
 
-    def _wait_for_change(self, code: int, position: int, index_of) -> int:
+    def _check_offered(self, code: int, target: int, index_of, name_of) -> None:
+        """Refuse a target notch that the descriptor's enumeration (either of Sony's lists) does not hold, naming
+        the offered notches nearest to it, as libgphoto2 config.c _put_sony_value_* (useenumorder) refuses one
+        before stepping: "Target value is not in enumeration." A descriptor without an enumeration (the A7's
+        shutter) lists nothing to check against."""
+        descriptor = self.properties.get(code)
+        if descriptor is None or descriptor.form_flag != FORM_ENUMERATION:
+            return
+        offered = set()
+        for value in {*descriptor.form, *(descriptor.secondary_form or ())}:
+            with contextlib.suppress(CameraError):  # Auto, an extended ISO, Bulb: no notch of hdrcam's
+                offered.add(index_of(value))
+        if not offered or target in offered:
+            return
+        nearest = [max((i for i in offered if i < target), default=None),
+                   min((i for i in offered if i > target), default=None)]
+        raise CameraError(f"{name_of(target)} is not offered by this body (the nearest it offers: "
+                          f"{' and '.join(name_of(index) for index in nearest if index is not None)})")
+
+    def _wait_for_change(self, code: int, position: int, index_of, unchanged: str | None) -> int:
+        """The notch ``code`` lands on after a step; CameraError ``unchanged`` (or a mode dial hint when None)
+        if it did not change within STEP_TIMEOUT_S."""
         deadline = self.clock.monotonic() + STEP_TIMEOUT_S
         while self.clock.monotonic() < deadline:
             self.clock.sleep(STEP_POLL_INTERVAL_S)
             landed = index_of(self.refresh()[code].current)
             if landed != position:
                 return landed
-        raise CameraError(f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a step; is the "
-                          "mode dial on M?")
+        raise CameraError(unchanged or f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a "
+                          "step; is the mode dial on M?")
 
     # -- capture ---------------------------------------------------------------------------------------------
     def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:

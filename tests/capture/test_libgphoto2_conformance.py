@@ -143,6 +143,28 @@ def test_descriptors_with_a_second_enumeration_list_are_read():
         assert camera.set_exposure(iso=800).iso == 800
 
 
+def test_an_iso_the_body_does_not_list_is_refused_before_any_step():
+    """config.c _put_sony_value_u32 (useenumorder): a target missing from the descriptor's enumeration is refused
+    before stepping ("Target value is not in enumeration."); hdrcam stepped up to 12800 and blamed the mode dial."""
+    camera, body = emulated(iso_max=12800)
+    with camera:
+        with pytest.raises(CameraError, match=r"^ISO 25600 is not offered by this body \(the nearest it offers: "
+                                              r"ISO 12800\)$"):
+            camera.set_exposure(iso=25600)
+        assert camera.settings().iso == 100 and body._step_count == 0
+        assert camera.set_exposure(iso=12800).iso == 12800
+
+
+def test_a_step_that_changes_nothing_at_the_end_of_the_bodys_list_says_the_value_is_not_offered():
+    """A body listing ISOs it cannot set (config.c: Sony "seems to report values in an enum that are not actually
+    supported") steps no higher than 12800: after steps that landed, that is no mode dial off M."""
+    camera, _ = emulated(iso_max=12800, iso_listed_beyond_max=True)
+    with camera:
+        with pytest.raises(CameraError, match="^ISO 25600 is not offered by this body: it steps no further than "
+                                              "ISO 12800$"):
+            camera.set_exposure(iso=25600)
+
+
 def test_second_enumeration_list_byte_exact():
     iso = hex_bytes("1ed2 0600 01 01 64000000 90010000 02 0200 64000000 90010000 0300 64000000 c8000000 90010000")
     shutter = hex_bytes("0dd2 0600 01 01 00000000 7d000100 00")
