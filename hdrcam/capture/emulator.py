@@ -97,6 +97,8 @@ class Faults:
     stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
     early_object_added: bool = False  # ObjectAdded when the exposure ends, before 0xD215 says the image is ready
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
+    io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
+    # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
     whole_packet_images: bool = False  # pad images so their data container is whole packets (a ZLP ends it)
     odd_property_types: bool = False  # 0x9209 also lists properties of array, 128-bit and string types
     empty_sdio_answers: int = 0  # answer the first N GetSDIOGetExtDeviceInfo with no data
@@ -177,6 +179,7 @@ class EmulatedSonyA7:
         self.opened_at: float | None = None  # when OpenSession last succeeded
         self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
+        self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
         self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
         self.events: collections.deque[bytes] = collections.deque()
@@ -236,6 +239,9 @@ class EmulatedSonyA7:
             buffer = memoryview(buffer).cast("B")[:self.faults.max_read_bytes]
         if self.halted:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
+        if self._io_error_due:
+            self._io_error_due = False
+            raise usb.core.USBError("Input/output error", errno=errno.EIO)
         count = self.in_pipe.read_into(buffer)
         if count is None:
             raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
@@ -293,6 +299,8 @@ class EmulatedSonyA7:
         if faults.silent_operation == code:
             faults.silent_operation = None
             return
+        if faults.io_error_operation == code:
+            faults.io_error_operation, self._io_error_due = None, True
         if faults.busy and self._handshake_done and code != Operation.OPEN_SESSION:
             faults.busy -= 1
             self._send(response(Response.DEVICE_BUSY, transaction_id))

@@ -4,8 +4,8 @@ OpenSession goes out with transaction id 0; later transactions count up from 1. 
 transaction (a late answer to one that timed out and was cancelled) is dropped and the next one read, as
 libgphoto2's ptp_transaction_new does ("suspecting old reply"); one for any other transaction is a protocol
 error. DeviceBusy is retried with back-off. A timeout cancels
-the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) has its
-halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
+the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) or a USB
+I/O error (EIO) has its halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
 ``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
 not repeated blindly (a second notch step or button press would do something else) and raises. A transaction
 stopped by anything else mid-flight (Ctrl-C or SIGTERM during a download, a malformed container) is cancelled

@@ -8,7 +8,8 @@ container is read until its length field is satisfied however short each read is
 zero-length read (a ZLP left over) is skipped. Events arrive on the interrupt pipe; they are hints only, so a
 packet that is not a valid event container is dropped, never raised. Class requests on the control pipe
 cancel a transaction, reset the device and read its status. USB failures become ``TransportTimeout``,
-``Stalled`` (EPIPE) or ``Disconnected``.
+``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which libgphoto2's usb.c recovers
+from as from a stall, clearing the IN halt and reading again) or ``Disconnected`` (ENODEV, ENOENT).
 """
 
 from __future__ import annotations
@@ -35,7 +36,9 @@ class TransportTimeout(CameraError):
 
 
 class Stalled(CameraError):
-    """An endpoint answered with a STALL (EPIPE): its halt must be cleared before the pipe works again."""
+    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO): its halt must be
+    cleared before the pipe works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN
+    endpoint's halt and retry)."""
 
 
 class Disconnected(CameraError):
@@ -207,6 +210,8 @@ def _translate(error: usb.core.USBError, action: str, timeout_ms: int | None = N
         return TransportTimeout(f"the camera did not answer{within} while {action}")
     if error.errno == errno.EPIPE:
         return Stalled(f"the camera stalled a pipe while {action}")
-    if error.errno in (errno.ENODEV, errno.EIO, errno.ENOENT) or "No such device" in str(error):
+    if error.errno == errno.EIO:
+        return Stalled(f"USB I/O error while {action} ({error})")
+    if error.errno in (errno.ENODEV, errno.ENOENT) or "No such device" in str(error):
         return Disconnected(f"the camera disconnected while {action} ({error})")
     return CameraError(f"USB error while {action}: {error}")
