@@ -46,7 +46,7 @@ from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSUR
                                       Property, Response)
 from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
-                                         PropertyDescriptor, pack_sony_properties)
+                                         PropertyDescriptor, Writer, pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
 from hdrcam.capture.simulated import SimulatedCamera
 
@@ -126,6 +126,8 @@ class Faults:
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
     lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
+    device_info_strings: int = 4  # DeviceInfo's trailing strings sent (Manufacturer, Model, DeviceVersion,
+    # SerialNumber, in that order): optional to libgphoto2's ptp_unpack_DI
     model: str = "ILCE-7"  # DeviceInfo's model; one of STARTUP_WAIT_MODELS ignores full presses made within
     # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
     session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
@@ -349,10 +351,13 @@ class EmulatedSonyA7:
         return Response.OK
 
     def _op_1001(self, request, payload):  # GetDeviceInfo
+        texts = ("Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
                           tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
-                          (SONY_RAW_FORMAT,), "Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
-        return info.pack(), Response.OK
+                          (SONY_RAW_FORMAT,), *texts)
+        packed = info.pack()
+        left_out = sum(len(Writer().string(text).bytes()) for text in texts[self.faults.device_info_strings:])
+        return packed[:len(packed) - left_out], Response.OK
 
     def _op_9201(self, request, payload):  # SDIOConnect phases 1, 2, 3
         if request.params and request.params[0] == 3:

@@ -196,7 +196,7 @@ class SonyA7Camera:
             raise CameraError(f"{info.manufacturer} {info.model} does not offer Sony's PTP extensions (vendor "
                               f"extension 0x{info.vendor_extension_id:X}): set USB Connection to 'PC Remote' in "
                               "the camera's menu")
-        self.model = f"{info.manufacturer} {info.model}".strip()
+        self.model = f"{info.manufacturer} {info.model}".strip() or self.model  # both optional (ptp_unpack_DI)
         self.model_code = info.model.strip()
         self.firmware = info.device_version
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)

@@ -186,6 +186,16 @@ def test_object_info_without_its_trailing_strings():
     assert ObjectInfo.unpack(packed[:-3]) == info  # dates and keywords left out
 
 
+@pytest.mark.parametrize("strings, model", [(3, "Sony Corporation ILCE-7"), (0, "Sony camera")])
+def test_device_info_without_its_trailing_strings(strings, model):
+    """ptp-pack.c ptp_unpack_DI reads Manufacturer, Model, DeviceVersion and SerialNumber only while data remains
+    (they are optional); a body leaving them out failed the handshake with 'dataset ends at byte ...'."""
+    camera, body = emulated(device_info_strings=strings)
+    with camera:
+        assert camera.model == model and camera.firmware == ("3.20" if strings >= 3 else "")
+    assert body.shots == []
+
+
 def test_damaged_datasets_are_camera_errors():
     with pytest.raises(CameraError):
         unpack_sony_properties(hex_bytes("01000000 00000000 0dd2"))
