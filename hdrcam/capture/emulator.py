@@ -120,6 +120,8 @@ class Faults:
     coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
     max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
     split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
+    unknown_length_objects: bool = False  # GetObject's data container says length 0xFFFFFFFF (size not known in
+    # advance; libgphoto2 usb.c ptp_usb_getdata reads it until a short packet)
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
     malformed_event: bool = False  # a 4-parameter event packet at the next full press
     damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
@@ -325,6 +327,8 @@ class EmulatedSonyA7:
         answer = response(reply_code, transaction_id).pack()
         if reply_payload is not None:
             packed = data(code, transaction_id, reply_payload).pack()
+            if faults.unknown_length_objects and code == Operation.GET_OBJECT:
+                packed = struct.pack("<I", 0xFFFFFFFF) + packed[4:]
             if faults.split_header:
                 self.in_pipe.queue(packed[:12])
                 packed = packed[12:]

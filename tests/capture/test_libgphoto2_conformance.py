@@ -67,7 +67,9 @@ def test_mf_capture_presses_and_releases_like_camera_sony_capture(tmp_path):
 
 @pytest.mark.parametrize("fault", [{"coalesce_response": True}, {"max_read_bytes": 512}, {"split_header": True},
                                    {"stale_response_operation": Operation.SONY_GET_ALL_DEVICE_PROP_DATA},
-                                   {"malformed_event": True}, {"whole_packet_images": True, "coalesce_response": True}])
+                                   {"malformed_event": True}, {"whole_packet_images": True, "coalesce_response": True},
+                                   {"unknown_length_objects": True},
+                                   {"unknown_length_objects": True, "whole_packet_images": True}])
 def test_transport_quirks_libgphoto2_copes_with_do_not_stop_a_capture(tmp_path, fault):
     camera, body = emulated(**fault)
     with camera:
