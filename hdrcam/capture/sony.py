@@ -365,7 +365,7 @@ class SonyA7Camera:
         deadline = self.clock.monotonic() + STEP_TIMEOUT_S
         while self.clock.monotonic() < deadline:
             self.clock.sleep(STEP_POLL_INTERVAL_S)
-            landed = index_of(self.refresh()[code].current)
+            landed = index_of(self._current_after_refresh(code))
             if landed != position:
                 return landed
         raise CameraError(unchanged or f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a "

@@ -277,6 +277,17 @@ def test_why_a_list_ended_early_is_logged_once_and_only_cited_while_it_holds():
         assert "read up to" not in str(missing.value)
 
 
+def test_a_property_missing_from_a_list_read_while_stepping_is_a_camera_error():
+    """unpack_sony_properties keeps the descriptors before one it cannot read; the property being stepped may be
+    among those left out, which raised a bare KeyError."""
+    camera, body = emulated()
+    with camera:
+        descriptors = body._descriptors
+        body._descriptors = lambda: [d for d in descriptors() if d.code != Property.SONY_SHUTTER_SPEED]
+        with pytest.raises(CameraError, match="does not report property 0xD20D"):
+            camera.set_exposure(exposure_s=1 / 125)
+
+
 def test_a_damaged_descriptor_ends_the_list_and_says_why():
     good = PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, 0x0001007D)
     later = PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, 1)
