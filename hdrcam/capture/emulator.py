@@ -116,6 +116,8 @@ class Faults:
     focus_found_value: int = SONY_FOCUS_FOUND  # what 0xD213 reads once focused: 2, or 3 as on the RX0
     pending_flag_without_images: bool = False  # 0xD215 reads 0x8000 (flag, no images) once memory is empty
     pending_flag_alone_when_ready: bool = False  # 0xD215 reads 0x8000 (no count) while an image is ready
+    pending_images_unreported: bool = False  # 0xD215 stays 0: only ObjectAdded announces an image (library.c
+    # camera_sony_capture: "needed on older cameras like the a58")
     secondary_enumerations: bool = False  # enumerated descriptors carry a second list (newer bodies)
     coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
     max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
@@ -512,7 +514,9 @@ class EmulatedSonyA7:
         settings = self.camera.settings()
         faults = self.faults
         waiting = (self._image is not None) + len(self._queued_images)
-        if self._image is not None and self._image_due_s is None:
+        if faults.pending_images_unreported:
+            pending = 0
+        elif self._image is not None and self._image_due_s is None:
             pending = SONY_PENDING_IMAGE_FLAG | (0 if faults.pending_flag_alone_when_ready else waiting)
         elif waiting:
             pending = waiting  # still being written: the count without the flag (libgphoto2: "also turns to 1")

@@ -21,11 +21,12 @@ ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at 
 none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not already read 0x8000
 before the release; for the next object of the same shot (RAW + JPEG) only if 0x8000 alone announced the one
 before (a body that announced it with a count means "empty" by 0x8000); a count without the flag (the body
-still writing: "also turns to 1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never
-taken as proof: a stale or early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and
-premature access can crash the firmware. Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the
-object that is not RAW is dropped and the next one awaited the same way. All vendor quirks live here; the
-generic PTP layer knows nothing of Sony.
+still writing: "also turns to 1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are not taken
+as proof: a stale or early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and
+premature access can crash the firmware; only when the wait runs out after one arrived is 0xFFFFC001 asked for
+(a body announcing images by the event alone: "needed on older cameras like the a58"). Then GetObjectInfo and
+GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the next one awaited the
+same way. All vendor quirks live here; the generic PTP layer knows nothing of Sony.
 """
 
 from __future__ import annotations
@@ -48,8 +49,8 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VE
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_ISO_NR_SHIFT, SONY_MANUFACTURER,
                                       SONY_PENDING_IMAGE_FLAG, SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2,
                                       SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
-                                      SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Operation,
-                                      Property, Response)
+                                      SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Event,
+                                      Operation, Property, Response)
 from hdrcam.capture.ptp.datasets import FORM_ENUMERATION, PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
@@ -462,25 +463,42 @@ class SonyA7Camera:
 
     def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> int:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
-        events only shorten the wait between polls. Returns the 0xD215 value that said so."""
+        events only shorten the wait between polls. Returns the 0xD215 value that said so. When the wait runs out
+        after an ObjectAdded arrived, 0xFFFFC001 is asked for once before giving up: a body that announces its
+        image only by that event (library.c camera_sony_capture: "needed on older cameras like the a58")."""
         deadline = self.clock.monotonic() + timeout_s
+        object_added = False
         while not _image_ready(pending := self._current_after_refresh(Property.SONY_PENDING_IMAGES),
                                flag_alone_is_ready):
             if self.clock.monotonic() > deadline:
+                if object_added and self._object_in_memory():
+                    return pending
                 stuck = (" (0xD215 read 0x8000 before and after: an image left in the camera's memory is not "
                          "drained on a body that means 'ready' by it; switch the camera off and on)"
                          if pending == SONY_PENDING_IMAGE_FLAG else "")
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
                                        f"release{stuck}")
-            self._pause_for_events()
+            event = self._pause_for_events()
+            object_added |= event is not None and event.code == Event.SONY_OBJECT_ADDED
         return pending
 
-    def _pause_for_events(self) -> None:
+    def _object_in_memory(self) -> bool:
+        """Whether GetObjectInfo(0xFFFFC001) finds an image (InvalidObjectHandle: none)."""
+        try:
+            self.session.object_info(SONY_IN_MEMORY_OBJECT)
+        except ResponseError as error:
+            if error.response_code != Response.INVALID_OBJECT_HANDLE:
+                raise
+            return False
+        return True
+
+    def _pause_for_events(self):
         """One poll interval between property reads: spent waiting on the interrupt pipe, which an event ends
-        early (a body without one: asleep)."""
-        if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
-                and self.session.transport.interrupt_in is None:
+        early (a body without one: asleep). Returns the event, if one came."""
+        event = self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000))
+        if event is None and self.session.transport.interrupt_in is None:
             self.clock.sleep(STEP_POLL_INTERVAL_S)
+        return event
 
     def _drain_stale_events(self) -> None:
         """Read and drop the events queued since the last shot (an old ObjectAdded says nothing of this one)."""

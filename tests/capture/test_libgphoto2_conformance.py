@@ -112,6 +112,15 @@ def test_0xd215_flag_alone_as_ready_is_an_image(tmp_path, image_quality):
     assert body.premature_requests == 0 and body.downloads == 3 * (1 + (image_quality == 0x13))
 
 
+def test_a_body_announcing_images_only_by_object_added_is_downloaded_when_the_wait_runs_out(tmp_path):
+    """library.c camera_sony_capture ends its wait on ObjectAdded ("needed on older cameras like the a58"); a body
+    leaving 0xD215 at 0 timed out with its image in memory. 0xFFFFC001 is asked for once the wait runs out."""
+    camera, body = emulated(pending_images_unreported=True)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.raw.bayer_dn.shape == (48, 64) and body.premature_requests == 0 and body.downloads == 1
+
+
 def test_multi_frame_noise_reduction_is_refused_before_any_shot():
     camera, body = emulated(iso_multi_frame_nr=True)
     with pytest.raises(CameraError, match="Multi Frame Noise Reduction"):
