@@ -46,7 +46,7 @@ from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSUR
                                       Property, Response)
 from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
-                                         PropertyDescriptor, pack_sony_properties)
+                                         PropertyDescriptor, Writer, pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
 from hdrcam.capture.simulated import SimulatedCamera
 
@@ -97,6 +97,8 @@ class Faults:
     stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
     early_object_added: bool = False  # ObjectAdded when the exposure ends, before 0xD215 says the image is ready
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
+    io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
+    # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
     whole_packet_images: bool = False  # pad images so their data container is whole packets (a ZLP ends it)
     odd_property_types: bool = False  # 0x9209 also lists properties of array, 128-bit and string types
     empty_sdio_answers: int = 0  # answer the first N GetSDIOGetExtDeviceInfo with no data
@@ -105,21 +107,31 @@ class Faults:
     exposure_mode: int = SONY_EXPOSURE_MODE_M  # 0x500E: 1 M, 2 P, 3 A, 4 S
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
     iso_multi_frame_nr: bool = False  # 0xD21E has Multi Frame Noise Reduction in its high byte
-    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only
+    iso_max: int | None = None  # the body offers ISO up to this only: 0xD21E lists no more, a step stops there
+    iso_listed_beyond_max: bool = False  # with iso_max, 0xD21E still lists the ISOs above it (config.c: Sony
+    # "seems to report values in an enum that are not actually supported under certain configurations (e.g. ISO)")
+    image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only;
+    # 0 as some bodies read it: the factory default (0x10) applies (library.c camera_sony_capture)
     reversed_shutter_steps: bool = False  # 0x9207 +1 makes the shutter longer (libgphoto2: +1 = shorter)
     focus_found_value: int = SONY_FOCUS_FOUND  # what 0xD213 reads once focused: 2, or 3 as on the RX0
     pending_flag_without_images: bool = False  # 0xD215 reads 0x8000 (flag, no images) once memory is empty
     pending_flag_alone_when_ready: bool = False  # 0xD215 reads 0x8000 (no count) while an image is ready
+    pending_images_unreported: bool = False  # 0xD215 stays 0: only ObjectAdded announces an image (library.c
+    # camera_sony_capture: "needed on older cameras like the a58")
     secondary_enumerations: bool = False  # enumerated descriptors carry a second list (newer bodies)
     coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
     max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
     split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
+    unknown_length_objects: bool = False  # GetObject's data container says length 0xFFFFFFFF (size not known in
+    # advance; libgphoto2 usb.c ptp_usb_getdata reads it until a short packet)
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
     malformed_event: bool = False  # a 4-parameter event packet at the next full press
     damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
     lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
+    device_info_strings: int = 4  # DeviceInfo's trailing strings sent (Manufacturer, Model, DeviceVersion,
+    # SerialNumber, in that order): optional to libgphoto2's ptp_unpack_DI
     model: str = "ILCE-7"  # DeviceInfo's model; one of STARTUP_WAIT_MODELS ignores full presses made within
     # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
     session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
@@ -173,6 +185,7 @@ class EmulatedSonyA7:
         self.opened_at: float | None = None  # when OpenSession last succeeded
         self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
+        self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
         self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
         self.events: collections.deque[bytes] = collections.deque()
@@ -232,6 +245,9 @@ class EmulatedSonyA7:
             buffer = memoryview(buffer).cast("B")[:self.faults.max_read_bytes]
         if self.halted:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
+        if self._io_error_due:
+            self._io_error_due = False
+            raise usb.core.USBError("Input/output error", errno=errno.EIO)
         count = self.in_pipe.read_into(buffer)
         if count is None:
             raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
@@ -289,6 +305,8 @@ class EmulatedSonyA7:
         if faults.silent_operation == code:
             faults.silent_operation = None
             return
+        if faults.io_error_operation == code:
+            faults.io_error_operation, self._io_error_due = None, True
         if faults.busy and self._handshake_done and code != Operation.OPEN_SESSION:
             faults.busy -= 1
             self._send(response(Response.DEVICE_BUSY, transaction_id))
@@ -311,6 +329,8 @@ class EmulatedSonyA7:
         answer = response(reply_code, transaction_id).pack()
         if reply_payload is not None:
             packed = data(code, transaction_id, reply_payload).pack()
+            if faults.unknown_length_objects and code == Operation.GET_OBJECT:
+                packed = struct.pack("<I", 0xFFFFFFFF) + packed[4:]
             if faults.split_header:
                 self.in_pipe.queue(packed[:12])
                 packed = packed[12:]
@@ -337,10 +357,13 @@ class EmulatedSonyA7:
         return Response.OK
 
     def _op_1001(self, request, payload):  # GetDeviceInfo
+        texts = ("Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
                           tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
-                          (SONY_RAW_FORMAT,), "Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
-        return info.pack(), Response.OK
+                          (SONY_RAW_FORMAT,), *texts)
+        packed = info.pack()
+        left_out = sum(len(Writer().string(text).bytes()) for text in texts[self.faults.device_info_strings:])
+        return packed[:len(packed) - left_out], Response.OK
 
     def _op_9201(self, request, payload):  # SDIOConnect phases 1, 2, 3
         if request.params and request.params[0] == 3:
@@ -464,13 +487,19 @@ class EmulatedSonyA7:
                 index = min(max(self.camera.notch.index + delta, 0), len(SHUTTER_NOTCHES) - 1)
                 self.camera.set_notch(SHUTTER_NOTCHES[index])
             else:
-                index = min(max(ISO_VALUES.index(int(self.camera.settings().iso)) + delta, 0), len(ISO_VALUES) - 1)
-                self.camera.set_iso(ISO_VALUES[index])
+                offered = self._offered_isos()
+                index = min(max(offered.index(int(self.camera.settings().iso)) + delta, 0), len(offered) - 1)
+                self.camera.set_iso(offered[index])
             self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
         if self._image_due_s is not None and now >= self._image_due_s:
             self._image_due_s = None
             if not self.faults.early_object_added:
                 self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+
+    def _offered_isos(self) -> tuple[int, ...]:
+        """The ISOs this body steps through (Faults.iso_max)."""
+        top = self.faults.iso_max
+        return ISO_VALUES if top is None else ISO_VALUES[:ISO_VALUES.index(top) + 1]
 
     def _focus_found(self) -> int:
         """0xD213: 2 once an AF body has focused after the half press, else 1."""
@@ -485,7 +514,9 @@ class EmulatedSonyA7:
         settings = self.camera.settings()
         faults = self.faults
         waiting = (self._image is not None) + len(self._queued_images)
-        if self._image is not None and self._image_due_s is None:
+        if faults.pending_images_unreported:
+            pending = 0
+        elif self._image is not None and self._image_due_s is None:
             pending = SONY_PENDING_IMAGE_FLAG | (0 if faults.pending_flag_alone_when_ready else waiting)
         elif waiting:
             pending = waiting  # still being written: the count without the flag (libgphoto2: "also turns to 1")
@@ -495,11 +526,12 @@ class EmulatedSonyA7:
         iso = ISO_AUTO if faults.iso_auto else int(settings.iso)
         if faults.iso_multi_frame_nr:
             iso |= 1 << 24
-        secondary = (*ISO_VALUES, ISO_AUTO) if faults.secondary_enumerations else None
+        listed = ISO_VALUES if faults.iso_listed_beyond_max else self._offered_isos()
+        secondary = (*listed, ISO_AUTO) if faults.secondary_enumerations else None
         descriptors = [
             PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, shutter, FORM_NONE, ()),
             PropertyDescriptor(Property.SONY_ISO, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
-                               (*ISO_VALUES, ISO_AUTO), secondary),
+                               (*listed, ISO_AUTO), secondary),
             *([PropertyDescriptor(Property.F_NUMBER, DataType.UINT16, 0, 1, 140, round(settings.f_number * 100))]
               if faults.lens_reports_aperture else []),
             PropertyDescriptor(Property.IMAGE_QUALITY, DataType.UINT8, 1, 1, 0x10, faults.image_quality),

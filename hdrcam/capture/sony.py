@@ -13,18 +13,20 @@ JPEG only (0x5004 without its RAW bit) or on Bulb, and records focus mode, drive
 After the handshake the priority mode (0xD25A) is set to "application" with 0x9205, as libgphoto2 does;
 a body that does not know it answers with an error, which is logged and ignored.
 
-Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image
-still in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2
-accepts for the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the
-image is ready. libgphoto2 reads that property two ways: its capture path (camera_sony_capture) takes
->= 0x8000 as ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e.
-0x8000 alone as none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not
-already read 0x8000 before the release; a count without the flag (the body still writing: "also turns to
-1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are never taken as proof: a stale or
-early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and premature access can
-crash the firmware. Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that is not
-RAW is dropped and the next one awaited the same way. All vendor quirks live here; the generic PTP layer
-knows nothing of Sony.
+Capture, as libgphoto2's camera_sony_capture: drain the events queued since the last shot and any image still
+in memory; half press; in an AF mode wait until FocusFound (0xD213) turns 2 (or 3, as libgphoto2 accepts for
+the RX0; never in MF), with a timeout; full press, release both; then wait until 0xD215 says the image is
+ready. libgphoto2 reads that property two ways: its capture path (camera_sony_capture) takes >= 0x8000 as
+ready, its event loop (camera_wait_for_event) 0x8000 | count with a count of at least 1, i.e. 0x8000 alone as
+none. So an image is ready above 0x8000, and at 0x8000 exactly only if 0xD215 did not already read 0x8000
+before the release; for the next object of the same shot (RAW + JPEG) only if 0x8000 alone announced the one
+before (a body that announced it with a count means "empty" by 0x8000); a count without the flag (the body
+still writing: "also turns to 1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are not taken
+as proof: a stale or early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and
+premature access can crash the firmware; only when the wait runs out after one arrived is 0xFFFFC001 asked for
+(a body announcing images by the event alone: "needed on older cameras like the a58"). Then GetObjectInfo and
+GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the next one awaited the
+same way. All vendor quirks live here; the generic PTP layer knows nothing of Sony.
 """
 
 from __future__ import annotations
@@ -47,9 +49,9 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VE
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_ISO_NR_SHIFT, SONY_MANUFACTURER,
                                       SONY_PENDING_IMAGE_FLAG, SONY_PRIORITY_APPLICATION, SONY_PROTOCOL_MODE_2,
                                       SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
-                                      SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Operation,
-                                      Property, Response)
-from hdrcam.capture.ptp.datasets import PropertyDescriptor, unpack_sony_properties
+                                      SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Event,
+                                      Operation, Property, Response)
+from hdrcam.capture.ptp.datasets import FORM_ENUMERATION, PropertyDescriptor, unpack_sony_properties
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
@@ -195,7 +197,7 @@ class SonyA7Camera:
             raise CameraError(f"{info.manufacturer} {info.model} does not offer Sony's PTP extensions (vendor "
                               f"extension 0x{info.vendor_extension_id:X}): set USB Connection to 'PC Remote' in "
                               "the camera's menu")
-        self.model = f"{info.manufacturer} {info.model}".strip()
+        self.model = f"{info.manufacturer} {info.model}".strip() or self.model  # both optional (ptp_unpack_DI)
         self.model_code = info.model.strip()
         self.firmware = info.device_version
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
@@ -229,7 +231,9 @@ class SonyA7Camera:
 
     def _check_ready_for_raw_brackets(self) -> None:
         """Refuse, before any shot, what would spoil a bracket: not on M, Bulb, JPEG only, a drive mode that takes
-        other than one frame per press at the shutter time set (the body's own bracket, continuous, self-timer)."""
+        other than one frame per press at the shutter time set (the body's own bracket, continuous, self-timer).
+        A quality (0x5004) reading 0 is the descriptor's factory default, as libgphoto2's camera_sony_capture
+        reads it (a current value 0 is replaced by FactoryDefaultValue)."""
         mode = self.properties.get(Property.EXPOSURE_PROGRAM_MODE)
         if mode is not None and mode.current != SONY_EXPOSURE_MODE_M:
             raise CameraError(f"the camera is not in manual exposure (mode 0x{mode.current:X}): turn the mode dial "
@@ -246,8 +250,9 @@ class SonyA7Camera:
         if iso is not None and iso.current >> SONY_ISO_NR_SHIFT:
             raise CameraError(_MFNR_MESSAGE)
         quality = self.properties.get(Property.IMAGE_QUALITY)
-        if quality is not None and not quality.current & SONY_RAW_QUALITY_FLAG:
-            raise CameraError(f"the camera records JPEG only (quality 0x{quality.current:02X}): set File Format to "
+        recorded = None if quality is None else quality.current or quality.factory_default
+        if recorded is not None and not recorded & SONY_RAW_QUALITY_FLAG:
+            raise CameraError(f"the camera records JPEG only (quality 0x{recorded:02X}): set File Format to "
                               "RAW (or RAW & JPEG) in the camera's menu")
 
     @property
@@ -297,10 +302,11 @@ class SonyA7Camera:
     def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
         if exposure_s is not None:
             target = nearest_shutter(exposure_s).index
-            self._step_to(Property.SONY_SHUTTER_SPEED, target,
-                          lambda value: _notch(value).index, len(SHUTTER_NOTCHES))
+            self._step_to(Property.SONY_SHUTTER_SPEED, target, lambda value: _notch(value).index,
+                          len(SHUTTER_NOTCHES), lambda index: f"shutter {SHUTTER_NOTCHES[index].label}")
         if iso is not None:
-            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES))
+            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES),
+                          lambda index: f"ISO {ISO_VALUES[index]}")
         return self.settings()
 
     @staticmethod
@@ -312,10 +318,14 @@ class SonyA7Camera:
             raise CameraError("ISO is on Auto or an extended value: set a fixed ISO between 100 and 25600")
         return ISO_VALUES.index(value)
 
-    def _step_to(self, code: int, target: int, index_of, notches: int) -> None:
-        """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot."""
+    def _step_to(self, code: int, target: int, index_of, notches: int, name_of) -> None:
+        """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot. A target the
+        body does not offer is refused before any step (``_check_offered``); a step that changes nothing after
+        earlier steps landed (the body is on M) is the end of the body's list: the target is not offered."""
+        self._check_offered(code, target, index_of, name_of)
         budget = 2 * notches
         position = index_of(self._current(code))
+        moved = False
         while position != target:
             if budget == 0:
                 raise CameraError(f"could not step property 0x{code:04X} to notch {target} (stuck at {position})")
@@ -323,20 +333,44 @@ class SonyA7Camera:
             direction = 1 if target > position else -1
             self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, code,
                                   data_out=_step_data(direction * self._step_sign[code]))
-            landed = self._wait_for_change(code, position, index_of)
+            landed = self._wait_for_change(code, position, index_of, (
+                f"{name_of(target)} is not offered by this body: it steps no further than {name_of(position)}"
+                if moved else None))
+            moved = True
             if (landed - position) * direction < 0:  # the camera counts the other way: learn it
                 self._step_sign[code] = -self._step_sign[code]
             position = landed  # an overshoot is stepped back on the next pass
 
-    def _wait_for_change(self, code: int, position: int, index_of) -> int:
+    def _check_offered(self, code: int, target: int, index_of, name_of) -> None:
+        """Refuse a target notch that the descriptor's enumeration (either of Sony's lists) does not hold, naming
+        the offered notches nearest to it, as libgphoto2 config.c _put_sony_value_* (useenumorder) refuses one
+        before stepping: "Target value is not in enumeration." A descriptor without an enumeration (the A7's
+        shutter) lists nothing to check against."""
+        descriptor = self.properties.get(code)
+        if descriptor is None or descriptor.form_flag != FORM_ENUMERATION:
+            return
+        offered = set()
+        for value in {*descriptor.form, *(descriptor.secondary_form or ())}:
+            with contextlib.suppress(CameraError):  # Auto, an extended ISO, Bulb: no notch of hdrcam's
+                offered.add(index_of(value))
+        if not offered or target in offered:
+            return
+        nearest = [max((i for i in offered if i < target), default=None),
+                   min((i for i in offered if i > target), default=None)]
+        raise CameraError(f"{name_of(target)} is not offered by this body (the nearest it offers: "
+                          f"{' and '.join(name_of(index) for index in nearest if index is not None)})")
+
+    def _wait_for_change(self, code: int, position: int, index_of, unchanged: str | None) -> int:
+        """The notch ``code`` lands on after a step; CameraError ``unchanged`` (or a mode dial hint when None)
+        if it did not change within STEP_TIMEOUT_S."""
         deadline = self.clock.monotonic() + STEP_TIMEOUT_S
         while self.clock.monotonic() < deadline:
             self.clock.sleep(STEP_POLL_INTERVAL_S)
-            landed = index_of(self.refresh()[code].current)
+            landed = index_of(self._current_after_refresh(code))
             if landed != position:
                 return landed
-        raise CameraError(f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a step; is the "
-                          "mode dial on M?")
+        raise CameraError(unchanged or f"property 0x{code:04X} did not change within {STEP_TIMEOUT_S:g} s of a "
+                          "step; is the mode dial on M?")
 
     # -- capture ---------------------------------------------------------------------------------------------
     def capture(self, folder: Path, stem: str, *, dark: bool = False) -> CapturedFrame:
@@ -351,9 +385,9 @@ class SonyA7Camera:
             with self._pressed(Property.SONY_FULL_PRESS):
                 pass
         timestamp = dt.datetime.now().replace(microsecond=0)
-        flag_alone_is_ready = before_release != SONY_PENDING_IMAGE_FLAG
-        self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s, flag_alone_is_ready)
-        info, content = self._download_raw(CAPTURE_TIMEOUT_S, flag_alone_is_ready)
+        announced = self._wait_for_image(CAPTURE_TIMEOUT_S + settings.exposure_s,
+                                         before_release != SONY_PENDING_IMAGE_FLAG)
+        info, content = self._download_raw(CAPTURE_TIMEOUT_S, announced)
         suffix = Path(info.filename).suffix.lower() or self.suffix_default
         path = write_bytes_atomic(folder / f"{stem}{suffix}", content)
         return CapturedFrame(path, settings, timestamp, self.model, read_raw(path))
@@ -367,9 +401,12 @@ class SonyA7Camera:
             self._pause_for_events()
             self.refresh()
 
-    def _download_raw(self, timeout_s: float, flag_alone_is_ready: bool):
+    def _download_raw(self, timeout_s: float, announced: int):
         """The shot's RAW object: with RAW + JPEG the camera holds two images in turn; the JPEG is dropped and the
-        next one awaited as the first was (``flag_alone_is_ready``: how 0xD215 = 0x8000 reads for this shot)."""
+        next one awaited. ``announced`` is the 0xD215 value that said the object in memory was ready: 0x8000
+        alone then reads "ready" for the next one too, a count (0x8001 and up) says this body means "memory
+        empty" by 0x8000 (libgphoto2 camera_wait_for_event waits for more than 0x8000), whatever 0xD215 read
+        before the release (0 on a session's first shot)."""
         for _ in range(OBJECTS_PER_SHOT):
             info = self.session.object_info(SONY_IN_MEMORY_OBJECT)
             content = self.session.get_object(SONY_IN_MEMORY_OBJECT)
@@ -379,7 +416,7 @@ class SonyA7Camera:
             if info.object_format == SONY_RAW_FORMAT:
                 return info, content
             self.session.log.append(f"dropped {info.filename} (format 0x{info.object_format:04X}, not RAW)")
-            self._wait_for_image(timeout_s, flag_alone_is_ready)
+            announced = self._wait_for_image(timeout_s, announced == SONY_PENDING_IMAGE_FLAG)
         raise CameraError(f"the camera sent no RAW image among {OBJECTS_PER_SHOT} objects: set File Format to RAW")
 
     def _press(self, button: int, state: int) -> None:
@@ -424,26 +461,44 @@ class SonyA7Camera:
             raise self._missing(code)
         return descriptor.current
 
-    def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> None:
+    def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> int:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
-        events only shorten the wait between polls."""
+        events only shorten the wait between polls. Returns the 0xD215 value that said so. When the wait runs out
+        after an ObjectAdded arrived, 0xFFFFC001 is asked for once before giving up: a body that announces its
+        image only by that event (library.c camera_sony_capture: "needed on older cameras like the a58")."""
         deadline = self.clock.monotonic() + timeout_s
+        object_added = False
         while not _image_ready(pending := self._current_after_refresh(Property.SONY_PENDING_IMAGES),
                                flag_alone_is_ready):
             if self.clock.monotonic() > deadline:
+                if object_added and self._object_in_memory():
+                    return pending
                 stuck = (" (0xD215 read 0x8000 before and after: an image left in the camera's memory is not "
                          "drained on a body that means 'ready' by it; switch the camera off and on)"
                          if pending == SONY_PENDING_IMAGE_FLAG else "")
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
                                        f"release{stuck}")
-            self._pause_for_events()
+            event = self._pause_for_events()
+            object_added |= event is not None and event.code == Event.SONY_OBJECT_ADDED
+        return pending
 
-    def _pause_for_events(self) -> None:
+    def _object_in_memory(self) -> bool:
+        """Whether GetObjectInfo(0xFFFFC001) finds an image (InvalidObjectHandle: none)."""
+        try:
+            self.session.object_info(SONY_IN_MEMORY_OBJECT)
+        except ResponseError as error:
+            if error.response_code != Response.INVALID_OBJECT_HANDLE:
+                raise
+            return False
+        return True
+
+    def _pause_for_events(self):
         """One poll interval between property reads: spent waiting on the interrupt pipe, which an event ends
-        early (a body without one: asleep)."""
-        if self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000)) is None \
-                and self.session.transport.interrupt_in is None:
+        early (a body without one: asleep). Returns the event, if one came."""
+        event = self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000))
+        if event is None and self.session.transport.interrupt_in is None:
             self.clock.sleep(STEP_POLL_INTERVAL_S)
+        return event
 
     def _drain_stale_events(self) -> None:
         """Read and drop the events queued since the last shot (an old ObjectAdded says nothing of this one)."""

@@ -4,6 +4,7 @@ where the wire is the point."""
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import pytest
@@ -66,7 +67,9 @@ def test_mf_capture_presses_and_releases_like_camera_sony_capture(tmp_path):
 
 @pytest.mark.parametrize("fault", [{"coalesce_response": True}, {"max_read_bytes": 512}, {"split_header": True},
                                    {"stale_response_operation": Operation.SONY_GET_ALL_DEVICE_PROP_DATA},
-                                   {"malformed_event": True}, {"whole_packet_images": True, "coalesce_response": True}])
+                                   {"malformed_event": True}, {"whole_packet_images": True, "coalesce_response": True},
+                                   {"unknown_length_objects": True},
+                                   {"unknown_length_objects": True, "whole_packet_images": True}])
 def test_transport_quirks_libgphoto2_copes_with_do_not_stop_a_capture(tmp_path, fault):
     camera, body = emulated(**fault)
     with camera:
@@ -109,12 +112,37 @@ def test_0xd215_flag_alone_as_ready_is_an_image(tmp_path, image_quality):
     assert body.premature_requests == 0 and body.downloads == 3 * (1 + (image_quality == 0x13))
 
 
+def test_a_body_announcing_images_only_by_object_added_is_downloaded_when_the_wait_runs_out(tmp_path):
+    """library.c camera_sony_capture ends its wait on ObjectAdded ("needed on older cameras like the a58"); a body
+    leaving 0xD215 at 0 timed out with its image in memory. 0xFFFFC001 is asked for once the wait runs out."""
+    camera, body = emulated(pending_images_unreported=True)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.raw.bayer_dn.shape == (48, 64) and body.premature_requests == 0 and body.downloads == 1
+
+
 def test_multi_frame_noise_reduction_is_refused_before_any_shot():
     camera, body = emulated(iso_multi_frame_nr=True)
     with pytest.raises(CameraError, match="Multi Frame Noise Reduction"):
         with camera:
             pass
     assert body.shots == []
+
+
+def test_image_quality_0_is_read_as_its_factory_default(tmp_path):
+    """library.c camera_sony_capture: a 0x5004 current value 0 stands for the descriptor's FactoryDefaultValue
+    (0x10, RAW, on the emulated body); it was refused as JPEG only. A JPEG factory default is still refused."""
+    camera, body = emulated(image_quality=0)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.path.suffix == ".dng" and len(body.shots) == 1
+    camera, body = emulated(image_quality=0)
+    descriptors = body._descriptors
+    body._descriptors = lambda: [dataclasses.replace(d, factory_default=0x03) if d.code == Property.IMAGE_QUALITY
+                                 else d for d in descriptors()]
+    with pytest.raises(CameraError, match=r"JPEG only \(quality 0x03\)"):
+        with camera:
+            pass
 
 
 def test_descriptors_with_a_second_enumeration_list_are_read():
@@ -124,6 +152,28 @@ def test_descriptors_with_a_second_enumeration_list_are_read():
         assert properties[Property.SONY_ISO].secondary_form == properties[Property.SONY_ISO].form
         assert properties[Property.SONY_PENDING_IMAGES].current == 0
         assert camera.set_exposure(iso=800).iso == 800
+
+
+def test_an_iso_the_body_does_not_list_is_refused_before_any_step():
+    """config.c _put_sony_value_u32 (useenumorder): a target missing from the descriptor's enumeration is refused
+    before stepping ("Target value is not in enumeration."); hdrcam stepped up to 12800 and blamed the mode dial."""
+    camera, body = emulated(iso_max=12800)
+    with camera:
+        with pytest.raises(CameraError, match=r"^ISO 25600 is not offered by this body \(the nearest it offers: "
+                                              r"ISO 12800\)$"):
+            camera.set_exposure(iso=25600)
+        assert camera.settings().iso == 100 and body._step_count == 0
+        assert camera.set_exposure(iso=12800).iso == 12800
+
+
+def test_a_step_that_changes_nothing_at_the_end_of_the_bodys_list_says_the_value_is_not_offered():
+    """A body listing ISOs it cannot set (config.c: Sony "seems to report values in an enum that are not actually
+    supported") steps no higher than 12800: after steps that landed, that is no mode dial off M."""
+    camera, _ = emulated(iso_max=12800, iso_listed_beyond_max=True)
+    with camera:
+        with pytest.raises(CameraError, match="^ISO 25600 is not offered by this body: it steps no further than "
+                                              "ISO 12800$"):
+            camera.set_exposure(iso=25600)
 
 
 def test_second_enumeration_list_byte_exact():
@@ -145,6 +195,16 @@ def test_object_info_without_its_trailing_strings():
     info = ObjectInfo(0x10001, 0xB101, 0, 1234, 0, 0, 0, 0, 6000, 4000, 16, 0, 0, 0, 0, "DSC00001.ARW", "", "", "")
     packed = info.pack()
     assert ObjectInfo.unpack(packed[:-3]) == info  # dates and keywords left out
+
+
+@pytest.mark.parametrize("strings, model", [(3, "Sony Corporation ILCE-7"), (0, "Sony camera")])
+def test_device_info_without_its_trailing_strings(strings, model):
+    """ptp-pack.c ptp_unpack_DI reads Manufacturer, Model, DeviceVersion and SerialNumber only while data remains
+    (they are optional); a body leaving them out failed the handshake with 'dataset ends at byte ...'."""
+    camera, body = emulated(device_info_strings=strings)
+    with camera:
+        assert camera.model == model and camera.firmware == ("3.20" if strings >= 3 else "")
+    assert body.shots == []
 
 
 def test_damaged_datasets_are_camera_errors():
@@ -226,6 +286,17 @@ def test_why_a_list_ended_early_is_logged_once_and_only_cited_while_it_holds():
         assert "read up to" not in str(missing.value)
 
 
+def test_a_property_missing_from_a_list_read_while_stepping_is_a_camera_error():
+    """unpack_sony_properties keeps the descriptors before one it cannot read; the property being stepped may be
+    among those left out, which raised a bare KeyError."""
+    camera, body = emulated()
+    with camera:
+        descriptors = body._descriptors
+        body._descriptors = lambda: [d for d in descriptors() if d.code != Property.SONY_SHUTTER_SPEED]
+        with pytest.raises(CameraError, match="does not report property 0xD20D"):
+            camera.set_exposure(exposure_s=1 / 125)
+
+
 def test_a_damaged_descriptor_ends_the_list_and_says_why():
     good = PropertyDescriptor(Property.SONY_SHUTTER_SPEED, DataType.UINT32, 1, 1, 0, 0x0001007D)
     later = PropertyDescriptor(Property.EXPOSURE_PROGRAM_MODE, DataType.UINT16, 0, 1, 1, 1)
@@ -235,10 +306,12 @@ def test_a_damaged_descriptor_ends_the_list_and_says_why():
     assert set(properties) == {Property.SONY_SHUTTER_SPEED} and "0x7777" in notes[0]
 
 
-def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
+@pytest.mark.parametrize("shots_before", [1, 0])
+def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path, shots_before):
     """RAW + JPEG on a body where 0xD215 = 0x8000 alone means memory empty: after the JPEG's download the RAW
-    appears 0.5 s later; with 0x8000 read before the release, the wait for the RAW must not take 0x8000 as ready
-    (asking 0xFFFFC001 early is the access libgphoto2 says can crash the firmware)."""
+    appears 0.5 s later; the wait for the RAW must not take 0x8000 as ready (asking 0xFFFFC001 early is the access
+    libgphoto2 says can crash the firmware) - neither with 0x8000 read before the release nor on the session's
+    first shot (0 before the release), where the JPEG announced with a count (0x8002) tells how 0x8000 reads."""
     camera, body = emulated(pending_flag_without_images=True, image_quality=0x13)
     read_bulk, advance, held = body.bulk_in, body._advance, {}
 
@@ -255,10 +328,11 @@ def test_raw_put_in_memory_after_the_jpeg_left_is_not_asked_for_early(tmp_path):
             body._image, body._image_format, body._image_name = held.pop("raw")
 
     with camera:
-        camera.capture(tmp_path, "f0")  # 0xD215 reads 0x8000 from now on when memory is empty
+        for k in range(shots_before):
+            camera.capture(tmp_path, f"f{k}")  # 0xD215 reads 0x8000 from now on when memory is empty
         body.bulk_in, body._advance = bulk_in, delayed_advance
-        camera.capture(tmp_path, "f1")
-    assert body.premature_requests == 0 and body.downloads == 4
+        camera.capture(tmp_path, "f")
+    assert body.premature_requests == 0 and body.downloads == 2 * (shots_before + 1)
 
 
 def test_a_body_that_needs_its_startup_time_gets_it_before_the_first_press(tmp_path):

@@ -235,6 +235,16 @@ def test_data_left_on_the_pipe_by_a_killed_run_is_reset_away_at_open_session(tmp
         assert camera.capture(tmp_path, "f").raw.bayer_dn.shape == (48, 64)
 
 
+def test_a_pipe_left_stalled_is_reset_away_at_open_session(tmp_path):
+    """library.c camera_init resets the device and tries OpenSession again after an I/O error; a bulk-in halt left
+    by a killed run failed the handshake with Stalled."""
+    camera, body = emulated()
+    body.halted = True
+    with camera:
+        assert camera.session.log.count("OpenSession after the reset: opened") == 1
+        assert camera.capture(tmp_path, "f").raw.bayer_dn.shape == (48, 64)
+
+
 def test_a_sony_body_reporting_the_mtp_extension_is_taken_as_sony_and_others_are_told_to_use_pc_remote():
     camera, _ = emulated(vendor_extension_id=0xFFFFFFFF)  # libgphoto2: MTP + "Sony Corporation" = Sony (PTP/IP)
     with camera:

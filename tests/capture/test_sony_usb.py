@@ -11,7 +11,7 @@ from hdrcam.capture.notches import SHUTTER_NOTCHES
 from hdrcam.capture.ptp.codes import Operation, Response
 from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.session import ProtocolError, ResponseError
-from hdrcam.capture.ptp.transport import READ_CHUNK_BYTES, Disconnected, TransportTimeout
+from hdrcam.capture.ptp.transport import READ_CHUNK_BYTES, Disconnected, Stalled, TransportTimeout
 from hdrcam.capture.sony import find_sony_camera
 from tests.capture.helpers import small_camera
 
@@ -76,6 +76,21 @@ def test_a_lost_read_only_answer_is_cancelled_and_retried(tmp_path):
 def test_a_lost_answer_to_a_command_that_changes_state_is_a_clear_timeout():
     with emulated(silent_operation=Operation.SONY_SET_CONTROL_DEVICE_B) as camera:
         with pytest.raises(TransportTimeout, match="did not answer"):
+            camera.set_exposure(exposure_s=1 / 125)
+
+
+def test_a_usb_io_error_is_cleared_and_a_read_only_operation_retried(tmp_path):
+    """libgphoto2 usb.c (ptp_usb_getdata, ptp_usb_getpacket) clears the IN halt after an I/O error and reads again:
+    EIO (the device is still there) is no disconnect."""
+    with emulated(io_error_operation=Operation.SONY_GET_ALL_DEVICE_PROP_DATA) as camera:
+        assert camera.capture(tmp_path, "frame").path.is_file()
+        assert any("I/O error" in line and "cleared the halt and retried" in line for line in camera.session.log)
+
+
+def test_a_usb_io_error_on_a_command_that_changes_state_is_not_repeated():
+    with emulated() as camera:
+        emulator_of(camera).faults.io_error_operation = Operation.SONY_SET_CONTROL_DEVICE_B
+        with pytest.raises(Stalled, match="I/O error"):
             camera.set_exposure(exposure_s=1 / 125)
 
 

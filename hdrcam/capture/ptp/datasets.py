@@ -175,10 +175,12 @@ class DeviceInfo:
 
     @classmethod
     def unpack(cls, payload: bytes) -> "DeviceInfo":
+        """Manufacturer, Model, DeviceVersion and SerialNumber are read while data remains ("" after its end):
+        libgphoto2's ptp_unpack_DI takes them as optional."""
         reader = Reader(payload)
         head = (reader.u16(), reader.u32(), reader.u16(), reader.string(), reader.u16())
         arrays = tuple(reader.u16_array() for _ in range(5))
-        texts = tuple(reader.string() for _ in range(4))
+        texts = tuple(reader.string() if reader.remaining else "" for _ in range(4))
         return cls(*head, *arrays, *texts)
 
 

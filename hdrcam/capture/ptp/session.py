@@ -4,14 +4,15 @@ OpenSession goes out with transaction id 0; later transactions count up from 1. 
 transaction (a late answer to one that timed out and was cancelled) is dropped and the next one read, as
 libgphoto2's ptp_transaction_new does ("suspecting old reply"); one for any other transaction is a protocol
 error. DeviceBusy is retried with back-off. A timeout cancels
-the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) has its
-halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
+the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) or a USB
+I/O error (EIO) has its halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
 ``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
 not repeated blindly (a second notch step or button press would do something else) and raises. A transaction
 stopped by anything else mid-flight (Ctrl-C or SIGTERM during a download, a malformed container) is cancelled
 too, so the camera is not left streaming a data phase into the next session. OpenSession that meets bytes of
-no container, or none in time (what a run killed mid-download leaves queued), resets the device (class request
-0x66), clears the pipes' halts and opens once more. OpenSession answered InvalidTransactionID (a body still
+no container, none in time (what a run killed mid-download leaves queued) or a stalled pipe (an I/O error to
+libgphoto2's camera_init, which resets and tries OpenSession again) resets the device (class request 0x66),
+clears the pipes' halts and opens once more. OpenSession answered InvalidTransactionID (a body still
 holding that session id) is asked again with the next session ids, up to SESSION_IDS_TRIED of them, then once
 more with the first after a device reset - libgphoto2's camera_init.
 """
@@ -186,7 +187,7 @@ class PtpSession:
         try:
             try:
                 self._open_some_session(session_id)
-            except (ContainerError, ProtocolError, TransportTimeout) as error:  # another run's data still queued
+            except (ContainerError, ProtocolError, TransportTimeout, Stalled) as error:  # another run's leftovers
                 self.log.append(f"OpenSession met {error}; reset the device")
                 self._reset_device()
                 self._open_some_session(session_id)

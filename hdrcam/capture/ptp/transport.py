@@ -1,14 +1,17 @@
 """PTP over USB bulk pipes (PIMA 15740 USB still-image class), on pyusb.
 
-A transaction's phases are containers on the bulk pipes; a transfer whose length is an exact multiple of
-the endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Reading follows
+A transaction's phases are containers on the bulk pipes; a transfer whose length is an exact multiple of the
+endpoint's wMaxPacketSize is ended by a zero-length packet (ZLP), in both directions. Reading follows
 libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet's worth, the rest of a
-container is read until its length field is satisfied however short each read is, bytes read past its end
-(a device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
-zero-length read (a ZLP left over) is skipped. Events arrive on the interrupt pipe; they are hints only, so a
-packet that is not a valid event container is dropped, never raised. Class requests on the control pipe
-cancel a transaction, reset the device and read its status. USB failures become ``TransportTimeout``,
-``Stalled`` (EPIPE) or ``Disconnected``.
+container is read until its length field is satisfied however short each read is, bytes read past its end (a
+device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
+zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
+known in advance) is read until a read comes back short, as ptp_usb_getdata does. Events arrive on the
+interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
+Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
+become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which
+libgphoto2's usb.c recovers from as from a stall, clearing the IN halt and reading again) or ``Disconnected``
+(ENODEV, ENOENT).
 """
 
 from __future__ import annotations
@@ -20,12 +23,13 @@ import usb.core
 import usb.util
 
 from hdrcam.capture.camera import CameraError
-from hdrcam.capture.ptp.codes import CANCEL_EVENT_CODE, PTP_INTERFACE, ClassRequest
+from hdrcam.capture.ptp.codes import CANCEL_EVENT_CODE, PTP_INTERFACE, ClassRequest, ContainerType
 from hdrcam.capture.ptp.container import HEADER_SIZE, Container, ContainerError, parse_header
 
 READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
 FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
 EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
+UNKNOWN_LENGTH = 0xFFFFFFFF  # a data container's length field when the device does not know its size
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 
@@ -35,7 +39,9 @@ class TransportTimeout(CameraError):
 
 
 class Stalled(CameraError):
-    """An endpoint answered with a STALL (EPIPE): its halt must be cleared before the pipe works again."""
+    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO): its halt must be
+    cleared before the pipe works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN
+    endpoint's halt and retry)."""
 
 
 class Disconnected(CameraError):
@@ -107,7 +113,8 @@ class UsbTransport:
         a 12-byte header sent alone). Bytes past the container's end are kept as the start of the next one;
         zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped. A short packet (a
         read that is not a whole number of packets) ends a transfer: a container still incomplete there is
-        damaged (CameraError), except after a read of exactly its 12-byte header (the header sent alone).
+        damaged (CameraError), except after a read of exactly its 12-byte header (the header sent alone). A data
+        container of UNKNOWN_LENGTH ends where a read returns less than it asked for (a short packet or a ZLP).
         """
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
@@ -117,7 +124,15 @@ class UsbTransport:
             while len(buffer) < HEADER_SIZE:
                 chunk = self._read(first_read, timeout_ms)
                 buffer += chunk
-            length = parse_header(buffer)[0]
+            length, kind = parse_header(buffer)[:2]
+            if length == UNKNOWN_LENGTH and kind == ContainerType.DATA:
+                ended = 0 < len(chunk) < first_read
+                while not ended:
+                    chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+                    buffer += chunk
+                    ended = len(chunk) < READ_CHUNK_BYTES
+                buffer[:4] = struct.pack("<I", len(buffer))
+                return Container.unpack(bytes(buffer))
             while len(buffer) < length:
                 if chunk and len(chunk) % packet_size and len(buffer) != HEADER_SIZE:
                     raise CameraError(f"the camera sent {len(buffer)} bytes of a {length}-byte container")
@@ -207,6 +222,8 @@ def _translate(error: usb.core.USBError, action: str, timeout_ms: int | None = N
         return TransportTimeout(f"the camera did not answer{within} while {action}")
     if error.errno == errno.EPIPE:
         return Stalled(f"the camera stalled a pipe while {action}")
-    if error.errno in (errno.ENODEV, errno.EIO, errno.ENOENT) or "No such device" in str(error):
+    if error.errno == errno.EIO:
+        return Stalled(f"USB I/O error while {action} ({error})")
+    if error.errno in (errno.ENODEV, errno.ENOENT) or "No such device" in str(error):
         return Disconnected(f"the camera disconnected while {action} ({error})")
     return CameraError(f"USB error while {action}: {error}")
