@@ -252,9 +252,37 @@ def test_subsampled_chroma_is_reconstructed_as_openexr_does(tmp_path):
                 "BY": OpenEXR.Channel("BY", subsampled(blue_difference), 2, 2)}
     OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "yc.exr"))
     rgb = read_exr(tmp_path / "yc.exr").rgb()
-    inner = (slice(14, -14), slice(14, -14))  # the filter reaches 13 samples; the edges are mirrored
+    inner = (slice(14, -14), slice(14, -14))  # the filter reaches 13 px; the edges: the next test
     np.testing.assert_allclose(rgb[inner][..., 0], ((red_difference + 1) * luminance)[inner], rtol=2e-5)
     np.testing.assert_allclose(rgb[inner][..., 2], ((blue_difference + 1) * luminance)[inner], rtol=2e-5)
+
+
+def test_chroma_beyond_the_edges_repeats_the_first_and_last_sample_as_openexr_pads(tmp_path):
+    """OpenEXR's FromYca repeats the first and last stored chroma sample beyond a row's ends (padTmpBuf) and
+    clamps rows; mirroring the zero-filled grid instead dropped every weight beyond an edge (up to 78 % off
+    within 13 px of the edges of Flowers.exr). Expected values from the filter's definition, sample by sample."""
+    from hdrcam.io.exr import CHROMA_WEIGHTS
+
+    height, width = 8, 36
+    stored = np.cos(np.arange(width // 2, dtype=np.float32)) * 0.3  # chroma at even columns, the same every row
+    red_difference = np.zeros((height, width), np.float32)
+    red_difference[:, ::2] = stored
+
+    def subsampled(plane: np.ndarray) -> np.ndarray:
+        packed = np.zeros_like(plane)
+        packed.ravel()[:plane[::2, ::2].size] = plane[::2, ::2].ravel()
+        return packed
+
+    luminance = np.ones((height, width), np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {
+        "Y": OpenEXR.Channel("Y", luminance), "RY": OpenEXR.Channel("RY", subsampled(red_difference), 2, 2),
+        "BY": OpenEXR.Channel("BY", np.zeros((height, width), np.float32), 2, 2)}).write(str(tmp_path / "yc.exr"))
+    red = read_exr(tmp_path / "yc.exr").rgb()[..., 0] - 1.0  # R = (RY + 1) Y with Y = 1
+    clamped = [stored[min(max(j, 0), stored.size - 1)] for j in range(-8, stored.size + 8)]  # index j + 8
+    expected = [stored[x // 2] if x % 2 == 0 else sum(
+        weight * (clamped[x // 2 - i + 8] + clamped[x // 2 + 1 + i + 8]) for i, weight in enumerate(CHROMA_WEIGHTS))
+        for x in range(width)]
+    np.testing.assert_allclose(red, np.broadcast_to(expected, red.shape), atol=2e-6)
 
 
 def test_an_exr_cut_short_in_its_pixel_data_says_so(tmp_path):
