@@ -40,7 +40,8 @@ from hdrcam.capture.notches import true_exposure_s
 from hdrcam.hdr.exposure_ratios import estimate_exposures
 from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS
 from hdrcam.io.raw import RawFrame
-from hdrcam.io.raw_clipping import SEARCH_FROM, is_in_top_part, sensor_white_dn, straddles_top_part, tiled
+from hdrcam.io.raw_clipping import (SEARCH_FROM, is_in_top_part, one_sensor_white, sensor_white_dn,
+                                    straddles_top_part, tiled)
 from hdrcam.parallel import strips, worker_threads
 from hdrcam.profiles import CameraSpec
 
@@ -110,9 +111,12 @@ def black_subtracted(frame: RawFrame) -> np.ndarray:
 
 
 def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:
-    """2 x 2 tile of clip levels (absolute DN) for a bracket: per CFA position, the lowest measured in any
-    frame (one sensor at one ISO clips at one level; frames that reach it show the pile-up)."""
-    return np.min(np.stack([frame.clip_level_tile_dn for frame in frames]), axis=0)
+    """2 x 2 tile of clip levels (absolute DN) for a bracket (shortest frame first): per CFA position, the lowest
+    measured in any frame (one sensor at one ISO clips at one level; frames that reach it show the pile-up), or
+    the sensor's white where other positions show it far below the metadata white (:func:`one_sensor_white`)."""
+    meta = frames[0].metadata
+    return one_sensor_white(np.min(np.stack([frame.clip_level_tile_dn for frame in frames]), axis=0),
+                            meta.black_level_tile(), meta.white_level_dn, frames[-1].bayer_dn)
 
 
 def dilated(mask: np.ndarray) -> np.ndarray:

@@ -10,9 +10,11 @@ is the metadata white level - unless no sample reaches the top part of the range
 sample is looked for (a white level far above the data). A clip level is never above the white level.
 
 One sensor's ADC clips every CFA position at (nearly) one level: the positions' pile-ups may differ by a few DN
-(the A7R III's cRAW: 16 383 and 16 372), and each keeps its own; but when some positions show a pile-up far
-below the metadata white (the fallback above) and others none, the pile-up is the sensor's white, and the
-positions without one - red and blue that never clipped in a green-lit scene - take it too.
+(the A7R III's cRAW: 16 383 and 16 372), and each keeps its own; but when, over a bracket, some positions show a
+pile-up far below the metadata white (the fallback above) and others none while their brightest samples stay at
+or below it - red and blue that never clipped in a green-lit scene - the pile-up is the sensor's white for them
+too (:func:`one_sensor_white`). A position whose samples go above it keeps the white level: its pile-up is not
+the sensor's white (a stuck readout at 3000 DN read as red's pile-up in a short frame).
 """
 
 from __future__ import annotations
@@ -35,26 +37,30 @@ BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-u
 
 
 def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float) -> np.ndarray:
-    """2 x 2 float32 tile of clip levels in DN (absolute, like the data), one per CFA position (positions without a
-    pile-up given the sensor's white where others show it far below the white level: :func:`one_sensor_white`)."""
+    """2 x 2 float32 tile of clip levels in DN (absolute, like the data), one per CFA position."""
     levels = np.empty((2, 2), np.float32)
     for row in range(2):
         for column in range(2):
             levels[row, column] = channel_clip_level(bayer_dn[row::2, column::2], float(black_tile_dn[row, column]),
                                                      white_level_dn)
-    return one_sensor_white(levels, black_tile_dn, white_level_dn)
+    return levels
 
 
-def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float) -> np.ndarray:
-    """``levels_dn`` (2 x 2, absolute DN) with the positions that found no pile-up (at ``white_level_dn``) set to
-    the highest level found below the top part of the range, where some position found one there (module
+def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float,
+                     longest_bayer_dn: np.ndarray) -> np.ndarray:
+    """A bracket's clip levels ``levels_dn`` (2 x 2, absolute DN) with each position that found no pile-up (at
+    ``white_level_dn``) set to the highest level found below the top part of the range, where some position found
+    one there and that position's samples in the longest frame ``longest_bayer_dn`` stay at or below it (module
     docstring). A DNG with WhiteLevel 65535, or none (the DNG spec's default, 2^BitsPerSample - 1), over 14-bit
     data: with only green clipped, red and blue stayed at 65535, the largest level set the full well, and every
     radiance came out 4x too dark (12-bit data: 16x)."""
     far_below = _below_top_part(levels_dn, black_tile_dn, white_level_dn)
     if not far_below.any():
         return levels_dn
-    return np.where(levels_dn >= white_level_dn, levels_dn[far_below].max(), levels_dn).astype(np.float32)
+    sensor_white = levels_dn[far_below].max()
+    brightest = np.array([[longest_bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
+    return np.where((levels_dn >= white_level_dn) & (brightest <= sensor_white), sensor_white, levels_dn
+                    ).astype(np.float32)
 
 
 def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: float) -> float:

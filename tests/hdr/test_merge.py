@@ -505,9 +505,37 @@ def test_clip_levels_on_both_sides_of_the_searched_range_are_warned_about():
     bayer[1::2, 0::2] = np.minimum(bayer[1::2, 0::2], 16383)
     bayer[1::2, 1::2] *= 0.2  # blue: no pile-up, so green's level
     frame = RawFrame(meta, np.minimum(bayer, 40000).astype(np.uint16))
-    assert frame.clip_level_tile_dn.tolist() == [[40000, 16383], [16383, 16383]]
+    assert frame.clip_level_tile_dn.tolist() == [[40000, 16383], [16383, 65535]]  # per frame: as measured
     with pytest.warns(UserWarning, match=r"clip levels \(40000, 16383, 16383, 16383 DN\) lie both below and above"):
-        merge_bayer([frame], PROFILE.camera, estimate_ratios=False)
+        merged = merge_bayer([frame], PROFILE.camera, estimate_ratios=False)
+    assert merged.clip_level_tile_dn.tolist() == [[40000, 16383], [16383, 16383]]
+
+
+def test_a_false_pile_up_in_one_position_leaves_the_others_at_the_white_level():
+    """A stuck readout of 40 red samples at 3000 DN in every frame of a 14-bit bracket (white 16383) reads as red's
+    pile-up in the shortest frame, where red stays below it. Green and blue, whose samples go far above 3000,
+    were given it too (per frame, when it was their shortest frame's level): the bracket's clip levels all 3000,
+    the full well 3000 DN, every radiance 6.4x too bright. They keep the white level; the scale stays right."""
+    import dataclasses
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    meta = dataclasses.replace(meta, black_level_dn=(512.0,) * 4, white_level_dn=16383.0)
+    ramp = np.geomspace(0.02, 2.0, 64 * 96).reshape(64, 96)
+    radiance = ramp * np.tile([[0.45, 1.0], [1.0, 0.4]], (32, 48))  # full wells per second
+    frames = []
+    for exposure in (1 / 16, 1 / 4, 1.0):
+        bayer = np.minimum(np.round(radiance * exposure * (16383 - 512) + 512), 16383).astype(np.uint16)
+        bayer[2:42:2, 20] = 3000  # the stuck red samples
+        frames.append(RawFrame(dataclasses.replace(meta, exposure_s=exposure), bayer))
+    assert frames[0].clip_level_tile_dn[0, 0] == 3000
+    with pytest.warns(UserWarning, match="lie both below and above"):
+        merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    assert merged.clip_level_tile_dn[1].tolist() == [16383, 16383]
+    valid = (radiance > 0.05) & (radiance * (16383 - 512) < 16383 - 512 - 300)  # unclipped in the shortest frame
+    valid[2:42:2, 20] = False
+    np.testing.assert_allclose(np.median(merged.rate[valid] / radiance[valid]), 1.0, rtol=5e-3)
 
 
 def test_lights_given_as_their_own_darks_are_refused_and_darks_that_recorded_light_are_warned_about(tmp_path):
