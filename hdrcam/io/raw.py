@@ -32,7 +32,8 @@ none left, camera RGB (``colour_matrix_source`` says which, and users of the mat
 the whole transform of the DNG model, AnalogBalance x CameraCalibration x ColorMatrix (the calibration only
 when its CameraCalibrationSignature matches the ProfileCalibrationSignature, as the DNG spec 1.2+ asks;
 phones' DNGs carry a per-unit calibration). A DNG that gives its as-shot white as AsShotWhiteXY instead of
-AsShotNeutral (LibRaw then reports no white balance) gets the neutral that white gives through that matrix.
+AsShotNeutral (LibRaw then reports no white balance) gets the neutral that white gives through the colour
+matrix (the DNG's, or LibRaw's table for the model).
 A file that records no as-shot white at all (a DNG with neither tag: LibRaw's camera_whitebalance [0, 1, 0, 0])
 is taken as shot in daylight - the neutral of D65 through its matrix, as LibRaw's
 LIBRAW_PROCESSING_CAMERAWB_FALLBACK_TO_DAYLIGHT does (rawpy's ``daylight_whitebalance``) - and
@@ -515,7 +516,8 @@ def _tiff_facts(path: Path) -> _TiffFacts:
                 if 50829 in mosaic:  # ActiveArea: top, left, bottom, right
                     facts.active_area_origin = tuple(int(n) for n in tuple(mosaic[50829].value)[:2])
                 if any(code in mosaic for code in (50714, 50715, 50716)):
-                    facts.dng_black_tile = _dng_black_tile(mosaic)
+                    tile = _dng_black_tile(mosaic)
+                    facts.dng_black_tile = tile if all(np.isfinite(tile)) else None  # a zero denominator: LibRaw's
     except Exception:  # not a TIFF, or a TIFF whose structure tifffile cannot follow: LibRaw decides
         pass
     finally:
@@ -542,19 +544,22 @@ def _is_greyscale_image(pages: list, make: str) -> bool:
 def _dng_black_tile(tags) -> tuple[float, float, float, float]:
     """The black level (DN, float) of each position of the 2 x 2 tile from a DNG raw image's tags (DNG spec 1.4,
     chapter 6): a sample at row r, column c of the ActiveArea has BlackLevel[r % R][c % C] (R x C from
-    BlackLevelRepeatDim, default 1 x 1; BlackLevel default 0; SHORT, LONG or RATIONAL) + BlackLevelDeltaH[c] +
+    BlackLevelRepeatDim, default 1 x 1 - a square count without it is taken as that square, as dcraw does;
+    BlackLevel default 0; SHORT, LONG or RATIONAL, read by the tag's type) + BlackLevelDeltaH[c] +
     BlackLevelDeltaV[r] (SRATIONAL, one per column and row). Per position, the mean over its rows and columns:
     the tile holds one level per position (a repeat of 1 or 2 and constant deltas, as converters write, are
     exact). The tile starts at the ActiveArea's origin, where LibRaw's visible area starts (an odd origin is
-    refused when the positions differ: :func:`_check_black_placement`)."""
-    rows, columns = (int(n) for n in tags[50713].value) if 50713 in tags else (1, 1)
-    levels = _rational_values(tags[50714].value, rows * columns).reshape(rows, columns) if 50714 in tags \
-        else np.zeros((rows, columns))
+    refused when the positions differ: :func:`_check_black_placement`). NaN where a rational's denominator is 0."""
+    stored = _tag_numbers(tags[50714]) if 50714 in tags and tags[50714].count else np.zeros(1)
+    side = math.isqrt(stored.size)
+    rows, columns = (int(n) for n in tags[50713].value) if 50713 in tags else \
+        ((side, side) if side * side == stored.size else (1, 1))
+    levels = np.resize(stored, rows * columns).reshape(rows, columns)  # a short list repeats (a damaged tag)
     repeated = np.tile(levels, (2, 2))  # 2R x 2C: a whole number of both the repeat and the 2 x 2 tile
     tile = np.array([[repeated[row::2, column::2].mean() for column in range(2)] for row in range(2)])
     for code, axis in ((50716, 0), (50715, 1)):  # DeltaV per row, DeltaH per column
         if code in tags:
-            deltas = _rational_values(tags[code].value, tags[code].count)
+            deltas = _tag_numbers(tags[code])
             means = [float(np.mean(deltas[phase::2])) if deltas[phase::2].size else 0.0 for phase in range(2)]
             tile += np.array(means)[:, None] if axis == 0 else np.array(means)[None, :]
     return tuple(float(b) for b in tile.ravel())
@@ -566,6 +571,20 @@ def _text(tags, code: int) -> str | None:
     value = tags[code].value
     text = value.decode(errors="replace") if isinstance(value, bytes) else str(value)
     return text.strip("\x00 ").strip() or None
+
+
+RATIONAL, SRATIONAL = 5, 10  # TIFF 6.0 field types
+
+
+def _tag_numbers(tag) -> np.ndarray:
+    """A numeric TIFF tag's values as floats, read by its type: (S)RATIONAL numerator / denominator pairs divided
+    (NaN where a denominator is 0), the integer and float types as stored (a SHORT BlackLevel of 512, 512 is not
+    the ratio 1)."""
+    flat = np.asarray(tag.value, dtype=np.float64).ravel()
+    if int(tag.dtype) not in (RATIONAL, SRATIONAL):  # tifffile: the field type
+        return flat
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(flat[1::2] != 0, flat[0::2] / flat[1::2], np.nan)
 
 
 def _rationals(value) -> np.ndarray:
@@ -656,12 +675,12 @@ def _uncompressed_bytes(page) -> list[tuple[float, float]]:
 def _as_shot_neutral(multipliers: np.ndarray, tiff: _TiffFacts, xyz_to_camera: np.ndarray, source: str
                      ) -> tuple[np.ndarray, str]:
     """(camera RGB of white, max 1; its ``white_balance_source``): LibRaw's as-shot white balance (the reciprocals
-    of its multipliers), else a DNG's AsShotWhiteXY through the DNG's matrix, else D65 through any usable matrix
+    of its multipliers), else a DNG's AsShotWhiteXY through any usable matrix, else D65 through it
     (module docstring), else ones."""
     if np.all(multipliers > 0):
         neutral = 1.0 / multipliers
         return neutral / neutral.max(), AS_SHOT
-    if tiff.as_shot_white_xy and source.startswith("DNG"):
+    if tiff.as_shot_white_xy and source != NO_COLOUR_MATRIX:  # the DNG's matrix or LibRaw's table for the model
         neutral = _neutral_of_white(tiff.as_shot_white_xy, xyz_to_camera)
         if neutral is not None:
             return neutral, AS_SHOT

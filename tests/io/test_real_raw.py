@@ -356,6 +356,19 @@ def test_an_as_shot_white_given_as_xy_gives_the_neutral(tmp_path):
     assert np.allclose(read_raw_metadata(path).as_shot_neutral, neutral / neutral.max(), atol=1e-3)
 
 
+def test_an_as_shot_white_given_as_xy_counts_with_libraws_matrix_for_the_model_too(tmp_path):
+    """AsShotWhiteXY in a DNG without ColorMatrix1, of a model LibRaw has a table for: the white was dropped for
+    daylight (and fuse would have said the file records none). The neutral is that white through LibRaw's matrix."""
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(17)), colour_matrix=None,
+                     make="SONY", model="ILCE-7RM3")
+    _with_tags(path, [(50729, "2I", 2, (3457, 10000, 3585, 10000), True)], drop={50728})  # about 5000 K
+    meta = read_raw_metadata(path)
+    assert meta.colour_matrix_source == "LibRaw" and meta.white_balance_source == "as shot"
+    xyz = np.array([0.3457 / 0.3585, 1.0, (1 - 0.3457 - 0.3585) / 0.3585])
+    neutral = meta.xyz_to_camera @ xyz
+    assert np.allclose(meta.as_shot_neutral, neutral / neutral.max(), atol=1e-6)
+
+
 def test_a_dng_without_an_as_shot_white_is_balanced_for_daylight_and_says_so(tmp_path):
     """A colour matrix but neither AsShotNeutral nor AsShotWhiteXY: LibRaw reports camera_whitebalance
     [0, 1, 0, 0], and ones for the neutral left a D65-grey ramp at R/G 0.15, B/G 0.38 (a strong green cast) without
@@ -412,6 +425,18 @@ def test_a_dngs_black_level_tags_are_read_as_written(tmp_path, masked):
     _with_tags(path, [tags[0], (50714, "H", 1, (0,), True), (50713, "H", 2, (1, 1), True),
                       (50716, "2i", height, (25600, 100) * height, True)] + tags[2:], drop={50713, 50714})
     assert read_raw_metadata(path).black_level_dn == (256.0,) * 4
+
+
+def test_a_dng_black_level_of_short_values_is_read_by_its_type_and_a_square_count_as_its_repeat(tmp_path):
+    """BlackLevel as four SHORT values and no BlackLevelRepeatDim: taken for two rationals, 512 / 512 gave a black
+    of 1.0. The values are the tag's type's; four of them without a repeat are a 2 x 2 one, as dcraw takes them."""
+    height, width = 64, 96
+    levels = (510, 512, 513, 515)
+    signal = sensor_dn(_scene(height, width) / 50, 0.004, np.random.default_rng(16), black_dn=(0, 0, 0, 0))
+    path = write_dng(tmp_path / "f.dng", signal + np.tile(np.reshape(levels, (2, 2)), (height // 2, width // 2)
+                                                          ).astype(np.uint16))
+    _with_tags(path, [(50714, "H", 4, levels, True)], drop={50713, 50714})
+    assert read_raw_metadata(path).black_level_dn == tuple(float(level) for level in levels)
 
 
 def _gain_map_opcode_list(height: int, width: int) -> bytes:
