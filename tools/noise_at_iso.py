@@ -83,7 +83,8 @@ def main() -> int:
     started = time.perf_counter()
     lines = [f"`python tools/noise_at_iso.py {' '.join(sys.argv[1:])}` (one thread; default checkpoint and its "
              "partner; linear PSNR gain over the LDR capture, dB):", "",
-             "| data | ISO gain | PSF | judge's noise | mean | worst | below -0.3 dB |", "|---|---|---|---|---|---|---|"]
+             "| data | ISO gain | PSF | judge's noise | mean | worst | below -0.3 dB |",
+             "|---|---|---|---|---|---|---|"]
     for data in arguments.data:
         for gain in arguments.gain or [1.0, 32.0]:
             for psf_name, psf in (("network's DOE", None), ("Dirac", dirac)):

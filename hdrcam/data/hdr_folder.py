@@ -70,13 +70,14 @@ def warn_negative_radiance(path: Path, image: np.ndarray) -> None:
 
 def hdr_files(folder: Path) -> list[Path]:
     """The HDR files in ``folder`` (sorted; hidden files - macOS's ._NAME.exr resource forks beside copied
-    photographs - and folders named like them left out, a link to a missing file kept, to be named when read);
-    an error when there are none."""
+    photographs - and folders named like them left out, a link to a missing file kept, to be named when read; a
+    .pic only when it is a Radiance file: Apple's PICT pictures share the suffix); an error when there are none."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder} is not a folder of HDR images")
     files = sorted(p for p in folder.iterdir()
-                   if p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") and not p.is_dir())
+                   if p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") and not p.is_dir()
+                   and (p.suffix.lower() != ".pic" or not p.is_file() or is_radiance_file(p)))  # .pic: also PICT
     if not files:
         raise InputError(f"{folder} holds no .exr or .hdr files")
     return files

@@ -276,9 +276,10 @@ def test_grey_pngs_with_alpha_and_integer_tiffs_other_than_16_bit_unsigned_are_r
     assert cv2.imread(str(tmp_path / "grey-alpha.png"), cv2.IMREAD_UNCHANGED).shape == (*grey.shape, 4)
     with pytest.raises(InputError, match="a grey and alpha PNG"):
         read_ldr_frame(tmp_path / "grey-alpha.png")
-    tifffile.imwrite(tmp_path / "frame.tif", (_gradient() * 30000).astype(np.int16), photometric="rgb")
-    with pytest.raises(InputError, match="int16 samples, whose white level is unknown"):
-        read_ldr_frame(tmp_path / "frame.tif")
+    for dtype in (np.int16, np.uint32):
+        tifffile.imwrite(tmp_path / "frame.tif", (_gradient() * 30000).astype(dtype), photometric="rgb")
+        with pytest.raises(InputError, match=f"{np.dtype(dtype).name} samples, whose white level is unknown"):
+            read_ldr_frame(tmp_path / "frame.tif")
 
 
 def test_a_folder_of_radiance_pic_files_is_read_as_frames_are(tmp_path):
@@ -288,4 +289,5 @@ def test_a_folder_of_radiance_pic_files_is_read_as_frames_are(tmp_path):
     scene = np.full((16, 16, 3), 2.0, np.float32)
     cv2.imwrite(str(tmp_path / "scene.hdr"), scene)
     (tmp_path / "scene.hdr").rename(tmp_path / "scene.pic")
+    (tmp_path / "thumb.pic").write_bytes(b"\0" * 512 + b"\x00\x0aPICT")  # an Apple PICT picture, not Radiance
     assert [path.name for path in hdr_files(tmp_path)] == ["scene.pic"]
