@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import pytest
 import usb.backend
 
@@ -49,6 +51,27 @@ def test_receive_handles_short_packets_and_zero_length_packets(payload_bytes):
             emulator.in_pipe.queue(packed)
             if len(packed) % BULK_PACKET_BYTES == 0:
                 emulator.in_pipe.queue(b"")  # the device's ZLP
+        assert transport.receive(1000).payload == payload
+        assert transport.receive(1000) == response(Response.OK, 42)
+        assert not emulator.in_pipe.transfers
+
+
+@pytest.mark.parametrize("max_read_bytes", [None, BULK_PACKET_BYTES])
+@pytest.mark.parametrize("payload_bytes", [1, BULK_PACKET_BYTES - HEADER_SIZE, BULK_PACKET_BYTES,
+                                           3 * BULK_PACKET_BYTES, 3 * BULK_PACKET_BYTES + 7])
+def test_unknown_length_data_ends_only_at_a_short_packet_or_a_zlp(payload_bytes, max_read_bytes):
+    """Length 0xFFFFFFFF: libgphoto2's ptp_usb_getdata reads on until a read under one packet. A header sent alone
+    and reads of one whole packet each (the backend's limit) do not end the container; a ZLP after whole packets
+    does, and the response after it is still read intact."""
+    with emulated(max_read_bytes=max_read_bytes) as camera:
+        transport, emulator = camera.session.transport, emulator_of(camera)
+        payload = bytes(range(256)) * (payload_bytes // 256) + bytes(payload_bytes % 256)
+        packed = data(0x1009, 42, payload).pack()
+        emulator.in_pipe.queue(struct.pack("<I", 0xFFFFFFFF) + packed[4:HEADER_SIZE])
+        emulator.in_pipe.queue(packed[HEADER_SIZE:])
+        if payload_bytes % BULK_PACKET_BYTES == 0:
+            emulator.in_pipe.queue(b"")  # the device's ZLP
+        emulator.in_pipe.queue(response(Response.OK, 42).pack())
         assert transport.receive(1000).payload == payload
         assert transport.receive(1000) == response(Response.OK, 42)
         assert not emulator.in_pipe.transfers

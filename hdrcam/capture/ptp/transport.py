@@ -6,7 +6,7 @@ libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet'
 container is read until its length field is satisfied however short each read is, bytes read past its end (a
 device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
 zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
-known in advance) is read until a read comes back short, as ptp_usb_getdata does. Events arrive on the
+known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
 become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which
@@ -114,7 +114,10 @@ class UsbTransport:
         zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped. A short packet (a
         read that is not a whole number of packets) ends a transfer: a container still incomplete there is
         damaged (CameraError), except after a read of exactly its 12-byte header (the header sent alone). A data
-        container of UNKNOWN_LENGTH ends where a read returns less than it asked for (a short packet or a ZLP).
+        container of UNKNOWN_LENGTH is read one packet at a time until a read comes back under one packet (a short
+        packet or a ZLP), as ptp_usb_getdata's read-until-short-packet mode does: a larger read could not tell a
+        ZLP that ended it early from a backend that returns less than asked. Its first read ends it only if it
+        was not a whole number of packets and not the header alone.
         """
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
@@ -126,11 +129,11 @@ class UsbTransport:
                 buffer += chunk
             length, kind = parse_header(buffer)[:2]
             if length == UNKNOWN_LENGTH and kind == ContainerType.DATA:
-                ended = 0 < len(chunk) < first_read
+                ended = len(chunk) % packet_size != 0 and len(buffer) != HEADER_SIZE
                 while not ended:
-                    chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+                    chunk = bytes(self.bulk_in.read(packet_size, timeout_ms))
                     buffer += chunk
-                    ended = len(chunk) < READ_CHUNK_BYTES
+                    ended = len(chunk) < packet_size
                 buffer[:4] = struct.pack("<I", len(buffer))
                 return Container.unpack(bytes(buffer))
             while len(buffer) < length:
