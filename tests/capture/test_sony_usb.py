@@ -124,6 +124,27 @@ def test_disconnect_during_download_leaves_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("when, unplug_eio_calls", [("disconnect_during_download", 8),
+                                                    ("disconnect_waiting_for_image", 1)])
+def test_an_unplug_reported_as_an_io_error_is_a_disconnect(tmp_path, when, unplug_eio_calls):
+    """The transfer in flight at an unplug (and, for a while, the calls after it: the status request too, before
+    the kernel sees the device go) fail with EIO, not ENODEV: the device's status request tells a disconnect from
+    a transfer error, on the bulk and the interrupt pipe alike."""
+    with pytest.raises(Disconnected, match="disconnected while"):
+        with emulated(**{when: True}, unplug_eio_calls=unplug_eio_calls) as camera:
+            camera.capture(tmp_path, "frame")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_transient_io_error_on_the_event_pipe_clears_its_halt_and_reads_as_no_event(tmp_path):
+    """Events are hints (libgphoto2's ptp_usb_event): an EIO on the interrupt pipe of a device still there must
+    not stop the capture; the endpoint's halt is cleared (the emulated pipe answers EPIPE until then)."""
+    with emulated(io_error_events=2) as camera:
+        assert camera.capture(tmp_path, "frame").path.is_file()
+        body = emulator_of(camera)
+        assert body.faults.io_error_events == 0 and not body.interrupt_halted
+
+
 def test_answer_for_another_transaction_is_a_protocol_error(tmp_path):
     with emulated(wrong_transaction_operation=Operation.GET_OBJECT_INFO) as camera:
         with pytest.raises(ProtocolError, match="transaction"):

@@ -11,11 +11,15 @@ interrupt pipe; they are hints only, so a packet that is not a valid event conta
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
 become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which
 libgphoto2's usb.c recovers from as from a stall, clearing the IN halt and reading again) or ``Disconnected``
-(ENODEV, ENOENT).
+(ENODEV, ENOENT). An EIO is also what an unplug gives before the kernel sees the device go (Linux URB -EPROTO,
+LIBUSB_ERROR_IO), so after one the device is asked for its status: failing that too (ENODEV, ENOENT, EIO), it is
+``Disconnected``. On the interrupt pipe an EIO from a device still there clears that endpoint's halt and reads
+as no event.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import struct
 
@@ -30,6 +34,7 @@ READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
 FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
 EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
 UNKNOWN_LENGTH = 0xFFFFFFFF  # a data container's length field when the device does not know its size
+PROBE_TIMEOUT_MS = 2000  # the status request asking, after an I/O error, whether the device is still there
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 
@@ -39,9 +44,9 @@ class TransportTimeout(CameraError):
 
 
 class Stalled(CameraError):
-    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO): its halt must be
-    cleared before the pipe works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN
-    endpoint's halt and retry)."""
+    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO) while the device
+    still answers its status request: its halt must be cleared before the pipe works again (libgphoto2 usb.c
+    ptp_usb_getdata / ptp_usb_getpacket: clear the IN endpoint's halt and retry)."""
 
 
 class Disconnected(CameraError):
@@ -100,7 +105,7 @@ class UsbTransport:
     def send(self, container: Container, timeout_ms: int) -> None:
         """Write one container, then a ZLP if its length is a multiple of the packet size."""
         packet = container.pack()
-        with _usb_errors("sending", timeout_ms):
+        with _usb_errors(self, "sending", timeout_ms):
             self.bulk_out.write(packet, timeout_ms)
             if len(packet) % self.bulk_out.wMaxPacketSize == 0:
                 self.bulk_out.write(b"", timeout_ms)
@@ -122,7 +127,7 @@ class UsbTransport:
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
         buffer, self._pending = bytearray(self._pending), b""
-        with _usb_errors("waiting for the camera", timeout_ms):
+        with _usb_errors(self, "waiting for the camera", timeout_ms):
             chunk = b""
             while len(buffer) < HEADER_SIZE:
                 chunk = self._read(first_read, timeout_ms)
@@ -159,14 +164,20 @@ class UsbTransport:
     def read_event(self, timeout_ms: int) -> Container | None:
         """One event container, or None if none arrives within the timeout or the packet is not a valid event
         (events only wake waits up; libgphoto2's ptp_usb_event reads at most 24 bytes and never fails a
-        capture on a bad one)."""
+        capture on a bad one). An I/O error with the device still there is None too, after clearing the
+        interrupt endpoint's halt, as libgphoto2's usb.c clears the IN endpoint's halt after GP_ERROR_IO_READ;
+        one with the device gone is ``Disconnected``."""
         if self.interrupt_in is None:
             return None
         try:
             packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
         except usb.core.USBError as error:
-            translated = _translate(error, "reading events", timeout_ms)
+            translated = self._translate(error, "reading events", timeout_ms)
             if isinstance(translated, TransportTimeout):
+                return None
+            if error.errno == errno.EIO and isinstance(translated, Stalled):
+                with contextlib.suppress(usb.core.USBError):
+                    self.device.clear_halt(self.interrupt_in)
                 return None
             raise translated from None
         try:
@@ -177,23 +188,36 @@ class UsbTransport:
     # -- control (class requests) ---------------------------------------------------------------------------
     def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
         self._pending = b""  # whatever was read ahead belongs to the cancelled transaction
-        with _usb_errors("cancelling", timeout_ms):
+        with _usb_errors(self, "cancelling", timeout_ms):
             self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.CANCEL, 0, self.interface_number,
                                       struct.pack("<HI", CANCEL_EVENT_CODE, transaction_id), timeout_ms)
 
     def reset(self, timeout_ms: int = 2000) -> None:
-        with _usb_errors("resetting", timeout_ms):
+        with _usb_errors(self, "resetting", timeout_ms):
             self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.DEVICE_RESET, 0, self.interface_number, None,
                                       timeout_ms)
 
     def status(self, timeout_ms: int = 2000) -> int:
         """The device's status response code (0x2001 OK, 0x2019 busy)."""
-        with _usb_errors("reading the status", timeout_ms):
+        with _usb_errors(self, "reading the status", timeout_ms):
             reply = bytes(self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0,
                                                     self.interface_number, 20, timeout_ms))
         if len(reply) < 4:
             raise CameraError("the camera's status reply is too short")
         return struct.unpack_from("<HH", reply)[1]
+
+    def _translate(self, error: usb.core.USBError, action: str, timeout_ms: int) -> CameraError:
+        """``error`` as a camera error; an EIO is a disconnect when the device's status request (class request
+        0x67, libgphoto2's ptp_usb_control_get_device_status) fails too with ENODEV, ENOENT or EIO."""
+        if error.errno == errno.EIO:
+            try:
+                self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0, self.interface_number, 20,
+                                          PROBE_TIMEOUT_MS)
+            except usb.core.USBError as probe_error:
+                if probe_error.errno in (errno.ENODEV, errno.ENOENT, errno.EIO) or "No such device" in str(probe_error):
+                    return Disconnected(f"the camera disconnected while {action} (an I/O error, then its status "
+                                        f"request failed: {probe_error})")
+        return _translate(error, action, timeout_ms)
 
     def clear_halts(self) -> None:
         self._pending = b""
@@ -207,15 +231,15 @@ class UsbTransport:
 class _usb_errors:
     """Context manager turning pyusb errors into camera errors that say what was happening."""
 
-    def __init__(self, action: str, timeout_ms: int):
-        self.action, self.timeout_ms = action, timeout_ms
+    def __init__(self, transport: UsbTransport, action: str, timeout_ms: int):
+        self.transport, self.action, self.timeout_ms = transport, action, timeout_ms
 
     def __enter__(self):
         return self
 
     def __exit__(self, kind, error, traceback):
         if isinstance(error, usb.core.USBError):
-            raise _translate(error, self.action, self.timeout_ms) from None
+            raise self.transport._translate(error, self.action, self.timeout_ms) from None
         return False
 
 
