@@ -105,6 +105,8 @@ class Faults:
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
     io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
     # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
+    io_error_mid_data_operation: int | None = None  # the second read of the next data phase of this command fails
+    # with EIO, the rest of the transfer still queued (a transfer error: nothing tells the body to stop sending)
     io_error_events: int = 0  # the next N interrupt-in reads fail with EIO, the device still there; the interrupt
     # endpoint then answers EPIPE until its halt is cleared (an assumption: the endpoint out of step after a
     # transfer error, which is why libgphoto2 usb.c clears the IN halt after GP_ERROR_IO_READ)
@@ -197,6 +199,7 @@ class EmulatedSonyA7:
         self.interrupt_halted = False  # interrupt-in halted until the host clears it (Faults.io_error_events)
         self._unplug_eio_calls = 0  # USB calls left that fail with EIO after an unplug (Faults.unplug_eio_calls)
         self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
+        self._io_error_mid_data_due = False  # a read within a transfer fails (Faults.io_error_mid_data_operation)
         self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
         self.events: collections.deque[bytes] = collections.deque()
@@ -258,6 +261,9 @@ class EmulatedSonyA7:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         if self._io_error_due:
             self._io_error_due = False
+            raise usb.core.USBError("Input/output error", errno=errno.EIO)
+        if self._io_error_mid_data_due and self.in_pipe.transfers and self.in_pipe.transfers[0][1]:
+            self._io_error_mid_data_due = False
             raise usb.core.USBError("Input/output error", errno=errno.EIO)
         count = self.in_pipe.read_into(buffer)
         if count is None:
@@ -339,6 +345,8 @@ class EmulatedSonyA7:
             return
         if faults.io_error_operation == code:
             faults.io_error_operation, self._io_error_due = None, True
+        if faults.io_error_mid_data_operation == code:
+            faults.io_error_mid_data_operation, self._io_error_mid_data_due = None, True
         if faults.busy and self._handshake_done and code != Operation.OPEN_SESSION:
             faults.busy -= 1
             self._send(response(Response.DEVICE_BUSY, transaction_id))

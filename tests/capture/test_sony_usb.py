@@ -7,15 +7,15 @@ import struct
 import pytest
 import usb.backend
 
-from hdrcam.capture.camera import CameraNotFound
+from hdrcam.capture.camera import CameraError, CameraNotFound
 from hdrcam.capture.emulator import BULK_PACKET_BYTES, Faults
 from hdrcam.capture.notches import SHUTTER_NOTCHES
-from hdrcam.capture.ptp.codes import Operation, Response
+from hdrcam.capture.ptp.codes import ClassRequest, Operation, Response
 from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.session import ProtocolError, ResponseError
 from hdrcam.capture.ptp.transport import READ_CHUNK_BYTES, Disconnected, Stalled, TransportTimeout
 from hdrcam.capture.sony import find_sony_camera
-from tests.capture.helpers import small_camera
+from tests.capture.helpers import emulated_a7, small_camera
 
 
 def emulated(**faults):
@@ -115,6 +115,23 @@ def test_a_usb_io_error_on_a_command_that_changes_state_is_not_repeated():
         emulator_of(camera).faults.io_error_operation = Operation.SONY_SET_CONTROL_DEVICE_B
         with pytest.raises(Stalled, match="I/O error"):
             camera.set_exposure(exposure_s=1 / 125)
+
+
+def test_an_io_error_mid_data_phase_cancels_the_transaction_and_is_not_retried(tmp_path):
+    """libgphoto2's ptp_usb_getdata retries a read "only once and only if we did not read anything yet", then fails
+    with PTP_ERROR_IO: an EIO after part of GetObject's data arrived must not re-send the transaction (the rest of
+    the old data would be read as a container); the transaction is cancelled (class request 0x64) and raised."""
+    camera, body = emulated_a7(io_error_mid_data_operation=Operation.GET_OBJECT)
+    requests = []
+    class_request = body.class_request
+    body.class_request = lambda request, payload: requests.append(request) or class_request(request, payload)
+    with pytest.raises(CameraError, match="I/O error .* after 512 bytes of a container"):
+        with camera:
+            log = camera.session.log
+            camera.capture(tmp_path, "frame")
+    assert ClassRequest.CANCEL in requests and not body.in_pipe.transfers
+    assert not any("retried" in line for line in log)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_disconnect_during_download_leaves_no_file(tmp_path):

@@ -9,12 +9,15 @@ zero-length read (a ZLP left over) is skipped; a data container whose length fie
 known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
-become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which
-libgphoto2's usb.c recovers from as from a stall, clearing the IN halt and reading again) or ``Disconnected``
-(ENODEV, ENOENT). An EIO is also what an unplug gives before the kernel sees the device go (Linux URB -EPROTO,
-LIBUSB_ERROR_IO), so after one the device is asked for its status: failing that too (ENODEV, ENOENT, EIO), it is
-``Disconnected``. On the interrupt pipe an EIO from a device still there clears that endpoint's halt and reads
-as no event.
+become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO before any byte of a container arrived: a transfer
+error with the device still there, which libgphoto2's usb.c recovers from as from a stall, clearing the IN halt
+and reading again) or ``Disconnected`` (ENODEV, ENOENT). An EIO once bytes of a container arrived is a plain
+``CameraError``: the transfer is broken (libgphoto2's ptp_usb_getdata retries a read "only once and only if we
+did not read anything yet", else fails with PTP_ERROR_IO), and re-sending the transaction would read the rest
+of the old data as the next container; the session cancels the transaction instead. An EIO is also what an
+unplug gives before the kernel sees the device go (Linux URB -EPROTO, LIBUSB_ERROR_IO), so after one the device
+is asked for its status: failing that too (ENODEV, ENOENT, EIO), it is ``Disconnected``. On the interrupt pipe
+an EIO from a device still there clears that endpoint's halt and reads as no event.
 """
 
 from __future__ import annotations
@@ -44,9 +47,9 @@ class TransportTimeout(CameraError):
 
 
 class Stalled(CameraError):
-    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO) while the device
-    still answers its status request: its halt must be cleared before the pipe works again (libgphoto2 usb.c
-    ptp_usb_getdata / ptp_usb_getpacket: clear the IN endpoint's halt and retry)."""
+    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO) before any byte of
+    a container arrived, the device still answering its status request: its halt must be cleared before the pipe
+    works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN endpoint's halt and retry)."""
 
 
 class Disconnected(CameraError):
@@ -127,7 +130,7 @@ class UsbTransport:
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
         buffer, self._pending = bytearray(self._pending), b""
-        with _usb_errors(self, "waiting for the camera", timeout_ms):
+        with _usb_errors(self, "waiting for the camera", timeout_ms, received=buffer):
             chunk = b""
             while len(buffer) < HEADER_SIZE:
                 chunk = self._read(first_read, timeout_ms)
@@ -206,9 +209,10 @@ class UsbTransport:
             raise CameraError("the camera's status reply is too short")
         return struct.unpack_from("<HH", reply)[1]
 
-    def _translate(self, error: usb.core.USBError, action: str, timeout_ms: int) -> CameraError:
+    def _translate(self, error: usb.core.USBError, action: str, timeout_ms: int, received: int = 0) -> CameraError:
         """``error`` as a camera error; an EIO is a disconnect when the device's status request (class request
-        0x67, libgphoto2's ptp_usb_control_get_device_status) fails too with ENODEV, ENOENT or EIO."""
+        0x67, libgphoto2's ptp_usb_control_get_device_status) fails too with ENODEV, ENOENT or EIO, and no stall
+        once ``received`` bytes of a container arrived (module docstring)."""
         if error.errno == errno.EIO:
             try:
                 self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0, self.interface_number, 20,
@@ -217,6 +221,9 @@ class UsbTransport:
                 if probe_error.errno in (errno.ENODEV, errno.ENOENT, errno.EIO) or "No such device" in str(probe_error):
                     return Disconnected(f"the camera disconnected while {action} (an I/O error, then its status "
                                         f"request failed: {probe_error})")
+            if received:
+                return CameraError(f"USB I/O error while {action}, after {received} bytes of a container: the "
+                                   "transfer is broken, so the transaction is cancelled, not repeated")
         return _translate(error, action, timeout_ms)
 
     def clear_halts(self) -> None:
@@ -229,17 +236,18 @@ class UsbTransport:
 
 
 class _usb_errors:
-    """Context manager turning pyusb errors into camera errors that say what was happening."""
+    """Context manager turning pyusb errors into camera errors that say what was happening; ``received`` is the
+    buffer a container is being read into (filled in place), whose length decides what an EIO means."""
 
-    def __init__(self, transport: UsbTransport, action: str, timeout_ms: int):
-        self.transport, self.action, self.timeout_ms = transport, action, timeout_ms
+    def __init__(self, transport: UsbTransport, action: str, timeout_ms: int, received: bytes | bytearray = b""):
+        self.transport, self.action, self.timeout_ms, self.received = transport, action, timeout_ms, received
 
     def __enter__(self):
         return self
 
     def __exit__(self, kind, error, traceback):
         if isinstance(error, usb.core.USBError):
-            raise self.transport._translate(error, self.action, self.timeout_ms) from None
+            raise self.transport._translate(error, self.action, self.timeout_ms, len(self.received)) from None
         return False
 
 
