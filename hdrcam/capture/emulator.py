@@ -11,8 +11,10 @@ and time is virtual (a clock that advances when the host sleeps or a read times 
 deterministically; with a real clock (e.g. behind HDRCAM_USB_BACKEND) scale them down.
 
 ``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response
-that never comes, a disconnect in the middle of a download, a response for the wrong transaction, steps that
-overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, images of whole USB packets (ZLPs),
+that never comes, a disconnect in the middle of a download or while waiting for the image (its first calls
+failing with EIO, as before the kernel sees the device go), a response for the wrong transaction, steps that
+overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, I/O errors on the bulk-in and interrupt
+pipes, images of whole USB packets (ZLPs),
 properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
 Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet
 per read, a header sent alone, a late response of an earlier transaction, a malformed event packet. Sony
@@ -55,6 +57,7 @@ RAW_AND_JPEG_QUALITIES = (0x12, 0x13, 0x14)  # 0x5004: RAW + JPEG standard, fine
 _FAKE_JPEG = b"\xff\xd8\xff\xe0" + bytes(1020) + b"\xff\xd9"  # a stand-in JPEG: only its format code is read
 BULK_PACKET_BYTES = 512  # USB 2.0 high speed
 INTERRUPT_PACKET_BYTES = 64
+BULK_IN_ENDPOINT, BULK_OUT_ENDPOINT, INTERRUPT_ENDPOINT = 0x81, 0x02, 0x83
 _DATA_OUT_OPERATIONS = {Operation.SONY_SET_CONTROL_DEVICE_A, Operation.SONY_SET_CONTROL_DEVICE_B,
                         Operation.SET_DEVICE_PROP_VALUE}
 
@@ -92,6 +95,9 @@ class Faults:
     silent_operation: int | None = None  # never answer the next command with this code
     disconnect_during_download: bool = False  # unplug after the first chunk of the next GetObject
     disconnect_after_downloads: int | None = None  # unplug mid-download once this many images were downloaded
+    disconnect_waiting_for_image: bool = False  # unplug at the first event read after the shutter release
+    unplug_eio_calls: int = 0  # after an unplug, this many USB calls fail with EIO before the rest fail with ENODEV
+    # (the kernel has not yet seen the device go: Linux URB -EPROTO, libusb LIBUSB_ERROR_IO)
     wrong_transaction_operation: int | None = None  # answer the next command with this code for another transaction
     overshoot_every: int = 0  # every Nth notch step moves two notches
     stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
@@ -99,6 +105,11 @@ class Faults:
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
     io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
     # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
+    io_error_mid_data_operation: int | None = None  # the second read of the next data phase of this command fails
+    # with EIO, the rest of the transfer still queued (a transfer error: nothing tells the body to stop sending)
+    io_error_events: int = 0  # the next N interrupt-in reads fail with EIO, the device still there; the interrupt
+    # endpoint then answers EPIPE until its halt is cleared (an assumption: the endpoint out of step after a
+    # transfer error, which is why libgphoto2 usb.c clears the IN halt after GP_ERROR_IO_READ)
     whole_packet_images: bool = False  # pad images so their data container is whole packets (a ZLP ends it)
     odd_property_types: bool = False  # 0x9209 also lists properties of array, 128-bit and string types
     empty_sdio_answers: int = 0  # answer the first N GetSDIOGetExtDeviceInfo with no data
@@ -185,7 +196,10 @@ class EmulatedSonyA7:
         self.opened_at: float | None = None  # when OpenSession last succeeded
         self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
+        self.interrupt_halted = False  # interrupt-in halted until the host clears it (Faults.io_error_events)
+        self._unplug_eio_calls = 0  # USB calls left that fail with EIO after an unplug (Faults.unplug_eio_calls)
         self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
+        self._io_error_mid_data_due = False  # a read within a transfer fails (Faults.io_error_mid_data_operation)
         self.downloads = 0  # images downloaded whole
         self.in_pipe = _InPipe(BULK_PACKET_BYTES)
         self.events: collections.deque[bytes] = collections.deque()
@@ -248,13 +262,16 @@ class EmulatedSonyA7:
         if self._io_error_due:
             self._io_error_due = False
             raise usb.core.USBError("Input/output error", errno=errno.EIO)
+        if self._io_error_mid_data_due and self.in_pipe.transfers and self.in_pipe.transfers[0][1]:
+            self._io_error_mid_data_due = False
+            raise usb.core.USBError("Input/output error", errno=errno.EIO)
         count = self.in_pipe.read_into(buffer)
         if count is None:
             raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
         if self._downloading and (self.faults.disconnect_during_download
                                   or self.faults.disconnect_after_downloads == self.downloads):
             self.faults.disconnect_during_download, self.faults.disconnect_after_downloads = False, None
-            self.connected = False
+            self._unplug()
         elif self._downloading and self.faults.stalls_during_download and self.in_pipe.transfers:
             self.faults.stalls_during_download -= 1
             self.in_pipe.clear()  # the rest of the transfer is lost; the image stays in memory
@@ -269,12 +286,25 @@ class EmulatedSonyA7:
                 self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         return count
 
-    def clear_halt(self) -> None:
-        self.halted = False
+    def clear_halt(self, endpoint: int) -> None:
+        self._require_connected()
+        if endpoint == INTERRUPT_ENDPOINT:
+            self.interrupt_halted = False
+        elif endpoint == BULK_IN_ENDPOINT:
+            self.halted = False
 
     def interrupt_in(self, buffer) -> int:
+        if self.faults.disconnect_waiting_for_image and self._image_due_s is not None:
+            self.faults.disconnect_waiting_for_image = False
+            self._unplug()
         self._require_connected()
         self._advance()
+        if self.interrupt_halted:
+            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
+        if self.faults.io_error_events:
+            self.faults.io_error_events -= 1
+            self.interrupt_halted = True
+            raise usb.core.USBError("Input/Output Error", errno=errno.EIO)
         if not self.events:
             raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
         packet = self.events.popleft()
@@ -294,9 +324,17 @@ class EmulatedSonyA7:
             return struct.pack("<HH", 4, Response.OK)
         raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
 
+    def _unplug(self) -> None:
+        self.connected = False
+        self._unplug_eio_calls = self.faults.unplug_eio_calls
+
     def _require_connected(self) -> None:
-        if not self.connected:
-            raise usb.core.USBError("No such device (it may have been disconnected)", errno=errno.ENODEV)
+        if self.connected:
+            return
+        if self._unplug_eio_calls:
+            self._unplug_eio_calls -= 1
+            raise usb.core.USBError("Input/Output Error", errno=errno.EIO)
+        raise usb.core.USBError("No such device (it may have been disconnected)", errno=errno.ENODEV)
 
     # -- PTP side --------------------------------------------------------------------------------------------
     def _answer(self, request: Container, payload: bytes | None) -> None:
@@ -307,6 +345,8 @@ class EmulatedSonyA7:
             return
         if faults.io_error_operation == code:
             faults.io_error_operation, self._io_error_due = None, True
+        if faults.io_error_mid_data_operation == code:
+            faults.io_error_mid_data_operation, self._io_error_mid_data_due = None, True
         if faults.busy and self._handshake_done and code != Operation.OPEN_SESSION:
             faults.busy -= 1
             self._send(response(Response.DEVICE_BUSY, transaction_id))
@@ -563,13 +603,13 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         super().__init__()
         self.camera = camera
         self._endpoints = (
-            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x81, bmAttributes=2,
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=BULK_IN_ENDPOINT, bmAttributes=2,
                             wMaxPacketSize=BULK_PACKET_BYTES, bInterval=0, bRefresh=0, bSynchAddress=0,
                             extra_descriptors=[]),
-            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x02, bmAttributes=2,
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=BULK_OUT_ENDPOINT, bmAttributes=2,
                             wMaxPacketSize=BULK_PACKET_BYTES, bInterval=0, bRefresh=0, bSynchAddress=0,
                             extra_descriptors=[]),
-            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=0x83, bmAttributes=3,
+            SimpleNamespace(bLength=7, bDescriptorType=5, bEndpointAddress=INTERRUPT_ENDPOINT, bmAttributes=3,
                             wMaxPacketSize=INTERRUPT_PACKET_BYTES, bInterval=4, bRefresh=0, bSynchAddress=0,
                             extra_descriptors=[]),
         )
@@ -646,7 +686,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         return len(data) if data is not None else 0
 
     def clear_halt(self, dev_handle, ep):
-        self.camera.clear_halt()
+        self.camera.clear_halt(ep)
 
     def reset_device(self, dev_handle):
         self.camera._reset_state()

@@ -69,7 +69,9 @@ def test_mf_capture_presses_and_releases_like_camera_sony_capture(tmp_path):
                                    {"stale_response_operation": Operation.SONY_GET_ALL_DEVICE_PROP_DATA},
                                    {"malformed_event": True}, {"whole_packet_images": True, "coalesce_response": True},
                                    {"unknown_length_objects": True},
-                                   {"unknown_length_objects": True, "whole_packet_images": True}])
+                                   {"unknown_length_objects": True, "whole_packet_images": True},
+                                   {"unknown_length_objects": True, "max_read_bytes": 512},
+                                   {"unknown_length_objects": True, "split_header": True}])
 def test_transport_quirks_libgphoto2_copes_with_do_not_stop_a_capture(tmp_path, fault):
     camera, body = emulated(**fault)
     with camera:

@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+import struct
+
 import pytest
 import usb.backend
 
-from hdrcam.capture.camera import CameraNotFound
+from hdrcam.capture.camera import CameraError, CameraNotFound
 from hdrcam.capture.emulator import BULK_PACKET_BYTES, Faults
 from hdrcam.capture.notches import SHUTTER_NOTCHES
-from hdrcam.capture.ptp.codes import Operation, Response
+from hdrcam.capture.ptp.codes import ClassRequest, Operation, Response
 from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.session import ProtocolError, ResponseError
 from hdrcam.capture.ptp.transport import READ_CHUNK_BYTES, Disconnected, Stalled, TransportTimeout
 from hdrcam.capture.sony import find_sony_camera
-from tests.capture.helpers import small_camera
+from tests.capture.helpers import emulated_a7, small_camera
 
 
 def emulated(**faults):
@@ -49,6 +51,27 @@ def test_receive_handles_short_packets_and_zero_length_packets(payload_bytes):
             emulator.in_pipe.queue(packed)
             if len(packed) % BULK_PACKET_BYTES == 0:
                 emulator.in_pipe.queue(b"")  # the device's ZLP
+        assert transport.receive(1000).payload == payload
+        assert transport.receive(1000) == response(Response.OK, 42)
+        assert not emulator.in_pipe.transfers
+
+
+@pytest.mark.parametrize("max_read_bytes", [None, BULK_PACKET_BYTES])
+@pytest.mark.parametrize("payload_bytes", [1, BULK_PACKET_BYTES - HEADER_SIZE, BULK_PACKET_BYTES,
+                                           3 * BULK_PACKET_BYTES, 3 * BULK_PACKET_BYTES + 7])
+def test_unknown_length_data_ends_only_at_a_short_packet_or_a_zlp(payload_bytes, max_read_bytes):
+    """Length 0xFFFFFFFF: libgphoto2's ptp_usb_getdata reads on until a read under one packet. A header sent alone
+    and reads of one whole packet each (the backend's limit) do not end the container; a ZLP after whole packets
+    does, and the response after it is still read intact."""
+    with emulated(max_read_bytes=max_read_bytes) as camera:
+        transport, emulator = camera.session.transport, emulator_of(camera)
+        payload = bytes(range(256)) * (payload_bytes // 256) + bytes(payload_bytes % 256)
+        packed = data(0x1009, 42, payload).pack()
+        emulator.in_pipe.queue(struct.pack("<I", 0xFFFFFFFF) + packed[4:HEADER_SIZE])
+        emulator.in_pipe.queue(packed[HEADER_SIZE:])
+        if payload_bytes % BULK_PACKET_BYTES == 0:
+            emulator.in_pipe.queue(b"")  # the device's ZLP
+        emulator.in_pipe.queue(response(Response.OK, 42).pack())
         assert transport.receive(1000).payload == payload
         assert transport.receive(1000) == response(Response.OK, 42)
         assert not emulator.in_pipe.transfers
@@ -94,11 +117,49 @@ def test_a_usb_io_error_on_a_command_that_changes_state_is_not_repeated():
             camera.set_exposure(exposure_s=1 / 125)
 
 
+def test_an_io_error_mid_data_phase_cancels_the_transaction_and_is_not_retried(tmp_path):
+    """libgphoto2's ptp_usb_getdata retries a read "only once and only if we did not read anything yet", then fails
+    with PTP_ERROR_IO: an EIO after part of GetObject's data arrived must not re-send the transaction (the rest of
+    the old data would be read as a container); the transaction is cancelled (class request 0x64) and raised."""
+    camera, body = emulated_a7(io_error_mid_data_operation=Operation.GET_OBJECT)
+    requests = []
+    class_request = body.class_request
+    body.class_request = lambda request, payload: requests.append(request) or class_request(request, payload)
+    with pytest.raises(CameraError, match="I/O error .* after 512 bytes of a container"):
+        with camera:
+            log = camera.session.log
+            camera.capture(tmp_path, "frame")
+    assert ClassRequest.CANCEL in requests and not body.in_pipe.transfers
+    assert not any("retried" in line for line in log)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_disconnect_during_download_leaves_no_file(tmp_path):
     with pytest.raises(Disconnected, match="disconnected"):
         with emulated(disconnect_during_download=True) as camera:
             camera.capture(tmp_path, "frame")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("when, unplug_eio_calls", [("disconnect_during_download", 8),
+                                                    ("disconnect_waiting_for_image", 1)])
+def test_an_unplug_reported_as_an_io_error_is_a_disconnect(tmp_path, when, unplug_eio_calls):
+    """The transfer in flight at an unplug (and, for a while, the calls after it: the status request too, before
+    the kernel sees the device go) fail with EIO, not ENODEV: the device's status request tells a disconnect from
+    a transfer error, on the bulk and the interrupt pipe alike."""
+    with pytest.raises(Disconnected, match="disconnected while"):
+        with emulated(**{when: True}, unplug_eio_calls=unplug_eio_calls) as camera:
+            camera.capture(tmp_path, "frame")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_transient_io_error_on_the_event_pipe_clears_its_halt_and_reads_as_no_event(tmp_path):
+    """Events are hints (libgphoto2's ptp_usb_event): an EIO on the interrupt pipe of a device still there must
+    not stop the capture; the endpoint's halt is cleared (the emulated pipe answers EPIPE until then)."""
+    with emulated(io_error_events=2) as camera:
+        assert camera.capture(tmp_path, "frame").path.is_file()
+        body = emulator_of(camera)
+        assert body.faults.io_error_events == 0 and not body.interrupt_halted
 
 
 def test_answer_for_another_transaction_is_a_protocol_error(tmp_path):

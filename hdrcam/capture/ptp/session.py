@@ -5,11 +5,13 @@ transaction (a late answer to one that timed out and was cancelled) is dropped a
 libgphoto2's ptp_transaction_new does ("suspecting old reply"); one for any other transaction is a protocol
 error. DeviceBusy is retried with back-off. A timeout cancels
 the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) or a USB
-I/O error (EIO) has its halts cleared and the device status checked (libgphoto2's recovery). Either is retried, up to
-``TRANSIENT_RETRIES`` times, for operations that only read; an operation that changes the camera's state is
-not repeated blindly (a second notch step or button press would do something else) and raises. A transaction
-stopped by anything else mid-flight (Ctrl-C or SIGTERM during a download, a malformed container) is cancelled
-too, so the camera is not left streaming a data phase into the next session. OpenSession that meets bytes of
+I/O error (EIO) before any byte of a container arrived has its halts cleared and the device status checked
+(libgphoto2's recovery). Either is retried, up to ``TRANSIENT_RETRIES`` times, for operations that only read; an
+operation that changes the camera's state is not repeated blindly (a second notch step or button press would do
+something else) and raises. A transaction stopped by anything else mid-flight (Ctrl-C or SIGTERM during a
+download, a malformed container, an EIO after part of a container arrived: libgphoto2's ptp_usb_getdata then
+fails with PTP_ERROR_IO) is cancelled too and raised, so the camera is not left streaming a data phase into the
+next session. OpenSession that meets bytes of
 no container, none in time (what a run killed mid-download leaves queued) or a stalled pipe (an I/O error to
 libgphoto2's camera_init, which resets and tries OpenSession again) resets the device (class request 0x66),
 clears the pipes' halts and opens once more. OpenSession answered InvalidTransactionID (a body still

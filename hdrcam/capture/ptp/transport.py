@@ -6,16 +6,23 @@ libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet'
 container is read until its length field is satisfied however short each read is, bytes read past its end (a
 device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
 zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
-known in advance) is read until a read comes back short, as ptp_usb_getdata does. Events arrive on the
+known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
-become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO: a transfer error with the device still there, which
-libgphoto2's usb.c recovers from as from a stall, clearing the IN halt and reading again) or ``Disconnected``
-(ENODEV, ENOENT).
+become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO before any byte of a container arrived: a transfer
+error with the device still there, which libgphoto2's usb.c recovers from as from a stall, clearing the IN halt
+and reading again) or ``Disconnected`` (ENODEV, ENOENT). An EIO once bytes of a container arrived is a plain
+``CameraError``: the transfer is broken (libgphoto2's ptp_usb_getdata retries a read "only once and only if we
+did not read anything yet", else fails with PTP_ERROR_IO), and re-sending the transaction would read the rest
+of the old data as the next container; the session cancels the transaction instead. An EIO is also what an
+unplug gives before the kernel sees the device go (Linux URB -EPROTO, LIBUSB_ERROR_IO), so after one the device
+is asked for its status: failing that too (ENODEV, ENOENT, EIO), it is ``Disconnected``. On the interrupt pipe
+an EIO from a device still there clears that endpoint's halt and reads as no event.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import struct
 
@@ -30,6 +37,7 @@ READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
 FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
 EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
 UNKNOWN_LENGTH = 0xFFFFFFFF  # a data container's length field when the device does not know its size
+PROBE_TIMEOUT_MS = 2000  # the status request asking, after an I/O error, whether the device is still there
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 
@@ -39,9 +47,9 @@ class TransportTimeout(CameraError):
 
 
 class Stalled(CameraError):
-    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO): its halt must be
-    cleared before the pipe works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN
-    endpoint's halt and retry)."""
+    """An endpoint answered with a STALL (EPIPE), or a transfer failed with an I/O error (EIO) before any byte of
+    a container arrived, the device still answering its status request: its halt must be cleared before the pipe
+    works again (libgphoto2 usb.c ptp_usb_getdata / ptp_usb_getpacket: clear the IN endpoint's halt and retry)."""
 
 
 class Disconnected(CameraError):
@@ -100,7 +108,7 @@ class UsbTransport:
     def send(self, container: Container, timeout_ms: int) -> None:
         """Write one container, then a ZLP if its length is a multiple of the packet size."""
         packet = container.pack()
-        with _usb_errors("sending", timeout_ms):
+        with _usb_errors(self, "sending", timeout_ms):
             self.bulk_out.write(packet, timeout_ms)
             if len(packet) % self.bulk_out.wMaxPacketSize == 0:
                 self.bulk_out.write(b"", timeout_ms)
@@ -114,23 +122,26 @@ class UsbTransport:
         zero-length reads (a ZLP ending an earlier transfer of whole packets) are skipped. A short packet (a
         read that is not a whole number of packets) ends a transfer: a container still incomplete there is
         damaged (CameraError), except after a read of exactly its 12-byte header (the header sent alone). A data
-        container of UNKNOWN_LENGTH ends where a read returns less than it asked for (a short packet or a ZLP).
+        container of UNKNOWN_LENGTH is read one packet at a time until a read comes back under one packet (a short
+        packet or a ZLP), as ptp_usb_getdata's read-until-short-packet mode does: a larger read could not tell a
+        ZLP that ended it early from a backend that returns less than asked. Its first read ends it only if it
+        was not a whole number of packets and not the header alone.
         """
         packet_size = self.bulk_in.wMaxPacketSize or 512
         first_read = packet_size * max(1, -(-FIRST_READ_MIN_BYTES // packet_size))
         buffer, self._pending = bytearray(self._pending), b""
-        with _usb_errors("waiting for the camera", timeout_ms):
+        with _usb_errors(self, "waiting for the camera", timeout_ms, received=buffer):
             chunk = b""
             while len(buffer) < HEADER_SIZE:
                 chunk = self._read(first_read, timeout_ms)
                 buffer += chunk
             length, kind = parse_header(buffer)[:2]
             if length == UNKNOWN_LENGTH and kind == ContainerType.DATA:
-                ended = 0 < len(chunk) < first_read
+                ended = len(chunk) % packet_size != 0 and len(buffer) != HEADER_SIZE
                 while not ended:
-                    chunk = bytes(self.bulk_in.read(READ_CHUNK_BYTES, timeout_ms))
+                    chunk = bytes(self.bulk_in.read(packet_size, timeout_ms))
                     buffer += chunk
-                    ended = len(chunk) < READ_CHUNK_BYTES
+                    ended = len(chunk) < packet_size
                 buffer[:4] = struct.pack("<I", len(buffer))
                 return Container.unpack(bytes(buffer))
             while len(buffer) < length:
@@ -156,14 +167,20 @@ class UsbTransport:
     def read_event(self, timeout_ms: int) -> Container | None:
         """One event container, or None if none arrives within the timeout or the packet is not a valid event
         (events only wake waits up; libgphoto2's ptp_usb_event reads at most 24 bytes and never fails a
-        capture on a bad one)."""
+        capture on a bad one). An I/O error with the device still there is None too, after clearing the
+        interrupt endpoint's halt, as libgphoto2's usb.c clears the IN endpoint's halt after GP_ERROR_IO_READ;
+        one with the device gone is ``Disconnected``."""
         if self.interrupt_in is None:
             return None
         try:
             packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
         except usb.core.USBError as error:
-            translated = _translate(error, "reading events", timeout_ms)
+            translated = self._translate(error, "reading events", timeout_ms)
             if isinstance(translated, TransportTimeout):
+                return None
+            if error.errno == errno.EIO and isinstance(translated, Stalled):
+                with contextlib.suppress(usb.core.USBError):
+                    self.device.clear_halt(self.interrupt_in)
                 return None
             raise translated from None
         try:
@@ -174,23 +191,40 @@ class UsbTransport:
     # -- control (class requests) ---------------------------------------------------------------------------
     def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
         self._pending = b""  # whatever was read ahead belongs to the cancelled transaction
-        with _usb_errors("cancelling", timeout_ms):
+        with _usb_errors(self, "cancelling", timeout_ms):
             self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.CANCEL, 0, self.interface_number,
                                       struct.pack("<HI", CANCEL_EVENT_CODE, transaction_id), timeout_ms)
 
     def reset(self, timeout_ms: int = 2000) -> None:
-        with _usb_errors("resetting", timeout_ms):
+        with _usb_errors(self, "resetting", timeout_ms):
             self.device.ctrl_transfer(_CLASS_OUT, ClassRequest.DEVICE_RESET, 0, self.interface_number, None,
                                       timeout_ms)
 
     def status(self, timeout_ms: int = 2000) -> int:
         """The device's status response code (0x2001 OK, 0x2019 busy)."""
-        with _usb_errors("reading the status", timeout_ms):
+        with _usb_errors(self, "reading the status", timeout_ms):
             reply = bytes(self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0,
                                                     self.interface_number, 20, timeout_ms))
         if len(reply) < 4:
             raise CameraError("the camera's status reply is too short")
         return struct.unpack_from("<HH", reply)[1]
+
+    def _translate(self, error: usb.core.USBError, action: str, timeout_ms: int, received: int = 0) -> CameraError:
+        """``error`` as a camera error; an EIO is a disconnect when the device's status request (class request
+        0x67, libgphoto2's ptp_usb_control_get_device_status) fails too with ENODEV, ENOENT or EIO, and no stall
+        once ``received`` bytes of a container arrived (module docstring)."""
+        if error.errno == errno.EIO:
+            try:
+                self.device.ctrl_transfer(_CLASS_IN, ClassRequest.GET_DEVICE_STATUS, 0, self.interface_number, 20,
+                                          PROBE_TIMEOUT_MS)
+            except usb.core.USBError as probe_error:
+                if probe_error.errno in (errno.ENODEV, errno.ENOENT, errno.EIO) or "No such device" in str(probe_error):
+                    return Disconnected(f"the camera disconnected while {action} (an I/O error, then its status "
+                                        f"request failed: {probe_error})")
+            if received:
+                return CameraError(f"USB I/O error while {action}, after {received} bytes of a container: the "
+                                   "transfer is broken, so the transaction is cancelled, not repeated")
+        return _translate(error, action, timeout_ms)
 
     def clear_halts(self) -> None:
         self._pending = b""
@@ -202,17 +236,18 @@ class UsbTransport:
 
 
 class _usb_errors:
-    """Context manager turning pyusb errors into camera errors that say what was happening."""
+    """Context manager turning pyusb errors into camera errors that say what was happening; ``received`` is the
+    buffer a container is being read into (filled in place), whose length decides what an EIO means."""
 
-    def __init__(self, action: str, timeout_ms: int):
-        self.action, self.timeout_ms = action, timeout_ms
+    def __init__(self, transport: UsbTransport, action: str, timeout_ms: int, received: bytes | bytearray = b""):
+        self.transport, self.action, self.timeout_ms, self.received = transport, action, timeout_ms, received
 
     def __enter__(self):
         return self
 
     def __exit__(self, kind, error, traceback):
         if isinstance(error, usb.core.USBError):
-            raise _translate(error, self.action, self.timeout_ms) from None
+            raise self.transport._translate(error, self.action, self.timeout_ms, len(self.received)) from None
         return False
 
 
