@@ -31,7 +31,7 @@ DEFAULT_MAX_GAP_S = 10.0
 @dataclasses.dataclass
 class IngestResult:
     brackets: list[list[RawMetadata]]
-    report: list[str]  # one line per file that is not in a bracket
+    report: list[str]  # one line per file that is not in a bracket, one for frames without a capture time
 
 
 NOT_CANDIDATES = (".json",)  # hdrcam's manifests beside the frames
@@ -52,6 +52,11 @@ def group_brackets(frames: list[RawMetadata], max_gap_s: float = DEFAULT_MAX_GAP
                frame.width_px, frame.height_px, bit_depth_class(frame.white_level_dn))
         by_settings.setdefault(key, []).append(frame)
     brackets, report = [], []
+    timeless = [frame.path.name for frame in frames if frame.timestamp is None]
+    if timeless:  # nothing tells brackets shot hours apart from one: only settings and file order group them
+        report.append(f"no capture time recorded in {len(timeless)} frame(s) ({', '.join(timeless[:3])}"
+                      f"{', ...' if len(timeless) > 3 else ''}): they are grouped by their settings and file names "
+                      "alone; check the brackets")
     for group in by_settings.values():
         group.sort(key=lambda f: (*_taken(f), f.path.name))
         current: list[RawMetadata] = []

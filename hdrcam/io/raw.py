@@ -74,6 +74,7 @@ NO_WHITE_BALANCE = "none"
 _D65_XY = (0.3127, 0.3290)  # CIE 1931 chromaticity of D65, sRGB's white (IEC 61966-2-1), which LibRaw's daylight
 # white balance maps to camera RGB (its rgb_cam is XYZ -> camera times sRGB -> XYZ)
 UNKNOWN_CAMERA = "unknown"
+EPOCH_YEAR = 1970  # rawpy turns LibRaw's timestamp 0 (none recorded) into 1970-01-01
 _MIN_MATRIX_DETERMINANT = 1e-6
 _D65 = 21  # EXIF LightSource code, as in CalibrationIlluminant
 FILLED_ROWS = 8
@@ -286,8 +287,9 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 exposure_s=float(f"{other.shutter_speed:.7g}"),  # LibRaw keeps float32
                 iso=float(other.iso_speed) if other.iso_speed > 0 else tiff.iso,
                 f_number=float(f"{other.aperture:.4g}") if other.aperture > 0 else None,  # float32 in LibRaw
-                timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) else None,
-                camera_model=" ".join(part for part in (tiff.make, tiff.model) if part) or UNKNOWN_CAMERA,
+                timestamp=other.timestamp if isinstance(other.timestamp, dt.datetime) and
+                other.timestamp.year > EPOCH_YEAR else None,  # LibRaw's 0 for a file without a capture time
+                camera_model=_camera_name(tiff.make, tiff.model),
                 make=tiff.make or UNKNOWN_CAMERA, file_format=tiff.file_format or path.suffix.lstrip(".").upper(),
                 colour_matrix_source=matrix_source, shading_not_applied=tiff.shading_opcodes,
                 orientation=_exif_orientation(int(raw.sizes.flip)))
@@ -563,6 +565,14 @@ def _dng_black_tile(tags) -> tuple[float, float, float, float]:
             means = [float(np.mean(deltas[phase::2])) if deltas[phase::2].size else 0.0 for phase in range(2)]
             tile += np.array(means)[:, None] if axis == 0 else np.array(means)[None, :]
     return tuple(float(b) for b in tile.ravel())
+
+
+def _camera_name(make: str | None, model: str | None) -> str:
+    """Make and model as one name; the model alone where it starts with the make's first word (Canon, Nikon and
+    Pentax models do: "Canon Canon EOS 5D Mark III" was the name)."""
+    if make and model and model.split()[0].lower() == make.split()[0].lower():
+        return model
+    return " ".join(part for part in (make, model) if part) or UNKNOWN_CAMERA
 
 
 def _text(tags, code: int) -> str | None:

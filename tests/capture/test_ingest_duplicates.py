@@ -110,3 +110,20 @@ def test_hand_set_brackets_back_to_back_split_at_the_repeat(tmp_path):
         assert [[f.path.name for f in bracket] for bracket in ingest_folder(folder).brackets] == [
             ["frame-00.dng", "frame-01.dng", "frame-02.dng"], ["frame-03.dng", "frame-04.dng", "frame-05.dng"]]
 
+
+
+def test_frames_without_a_capture_time_are_grouped_and_said_to_be(tmp_path):
+    """Frames whose files record no capture time (LibRaw's 0) were dated 1970-01-01 and grouped as if shot in one
+    second; nothing tells brackets hours apart from one then, and the report says so."""
+    import numpy as np
+
+    from tests.io.realistic_dng import sensor_dn, write_dng
+
+    scene = 2.0 ** (6 + 8 * np.mgrid[0:32, 0:48][1] / 47)
+    for k, exposure in enumerate((0.001, 0.004, 0.016)):
+        write_dng(tmp_path / f"f{k}.dng", sensor_dn(scene, exposure, np.random.default_rng(k)), exposure_s=exposure,
+                  datetime=None)
+    result = ingest_folder(tmp_path)
+    assert [len(bracket) for bracket in result.brackets] == [3]
+    assert all(frame.timestamp is None for frame in result.brackets[0])
+    assert any("no capture time recorded in 3 frame(s)" in line for line in result.report)

@@ -3,6 +3,7 @@ and DNGs with realistic sensor statistics for what it does not cover (tests/io/r
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import shutil
 import struct
@@ -523,3 +524,18 @@ def test_a_pile_up_spread_over_a_few_dn_is_still_found():
     spread = 13_495 + rng.integers(0, 6, 5_000)  # clipped, then offset per column by 0-5 DN
     level = channel_clip_level(np.concatenate([scene, spread]).astype(np.uint16), 512, 16383)
     assert 13_495 <= level <= 13_500  # its nearest neighbours are the pile itself: white was taken instead
+
+
+def test_a_file_without_a_capture_time_has_none_and_a_model_that_repeats_the_make_is_named_once(tmp_path):
+    """LibRaw reports 0 for a file without DateTime, which rawpy turns into 1970-01-01: ingest then took it for a
+    time and grouped brackets shot hours apart as one. Canon's Model tag repeats its Make: "Canon Canon EOS 5D
+    Mark III" was the camera's name in manifests and messages."""
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(18)), datetime=None,
+                     make="Canon", model="Canon EOS 5D Mark III")
+    meta = read_raw_metadata(path)
+    assert meta.timestamp is None
+    assert meta.camera_model == "Canon EOS 5D Mark III"
+    path = write_dng(tmp_path / "g.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(18)), make="SONY",
+                     model="ILCE-7RM3")
+    assert read_raw_metadata(path).camera_model == "SONY ILCE-7RM3"
+    assert read_raw_metadata(path).timestamp == dt.datetime(2026, 11, 24, 12, 0, 0)
