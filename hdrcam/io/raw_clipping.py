@@ -7,7 +7,9 @@ the top part of the range when it stands far above the histogram just below it -
 occupied values (a spike, not the smooth tail of a bright area, nor the noise peak of a flat one); then every
 sample at or above it is clipped. Without such a pile-up the clip level
 is the metadata white level - unless no sample reaches the top part of the range, when a pile-up at the largest
-sample is looked for (a white level far above the data). A clip level is never above the white level.
+sample is looked for (a white level far above the data). A clip level is never above the white level. A position
+with no pile-up of its own (a small light clips a few of its samples) takes the pile-up of all four positions'
+samples together, where its brightest samples reach it and none goes above.
 
 One sensor's ADC clips every CFA position at (nearly) one level: the positions' pile-ups may differ by a few DN
 (the A7R III's cRAW: 16 383 and 16 372), and each keeps its own; but when, over a bracket, some positions show a
@@ -37,13 +39,34 @@ BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-u
 
 
 def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float) -> np.ndarray:
-    """2 x 2 float32 tile of clip levels in DN (absolute, like the data), one per CFA position."""
+    """2 x 2 float32 tile of clip levels in DN (absolute, like the data), one per CFA position; positions that found
+    no pile-up of their own take the pile-up of all positions' samples together (:func:`shared_pile_up`)."""
     levels = np.empty((2, 2), np.float32)
     for row in range(2):
         for column in range(2):
             levels[row, column] = channel_clip_level(bayer_dn[row::2, column::2], float(black_tile_dn[row, column]),
                                                      white_level_dn)
-    return levels
+    return shared_pile_up(levels, bayer_dn, black_tile_dn, white_level_dn)
+
+
+def shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, black_tile_dn: np.ndarray,
+                   white_level_dn: float) -> np.ndarray:
+    """``levels_dn`` (2 x 2, absolute DN) with each position left at the white level given the pile-up of the
+    four positions' samples together, found in the top part of the range as one position's is, where its own
+    brightest samples reach it (within PILE_WIDTH_DN) and none goes above it. A small light clips a few samples
+    of each position - a 3 x 3 px lamp two or four - fewer than MIN_PILE_SAMPLES: on a body clipping at 15 000 DN
+    under a white level of 16 383, such a lamp read 0.91 of white and "no clipped pixels"; one sensor's ADC clips
+    all positions at one level (module docstring). Only the top part is searched: a stuck readout far below white
+    is no sensor's clip level."""
+    unfound = levels_dn >= white_level_dn
+    if not unfound.any():
+        return levels_dn
+    shared = _pile_up(bayer_dn, float(np.mean(black_tile_dn)), white_level_dn, at_ceiling_only=False)
+    if shared is None or shared >= white_level_dn:
+        return levels_dn
+    brightest = np.array([[bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
+    reaches = (brightest <= shared) & (brightest >= shared - PILE_WIDTH_DN)  # its own few samples clipped there
+    return np.where(unfound & reaches, shared, levels_dn).astype(np.float32)
 
 
 def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float,

@@ -50,8 +50,9 @@ def test_the_real_arw_decodes_as_libraw_does(arw):
     assert (meta.make, meta.camera_model, meta.file_format) == ("SONY", "SONY ILCE-7RM3", "ARW")
     assert (meta.exposure_s, meta.iso, meta.f_number) == (0.0015625, 3200.0, 6.3)
     # cRAW: clipped greens and blues pile up at 16372, below the metadata white, scattered up to 16628 above it;
-    # the second green's pile holds 14 samples (19 at or above it), which a 16-sample minimum missed
-    assert frame.clip_level_tile_dn.tolist() == [[16383, 16372], [16372, 16372]]
+    # the second green's pile holds 14 samples (19 at or above it), which a 16-sample minimum missed; red's two
+    # brightest samples sit at 16372 too - too few for a pile of its own, they take the positions' shared one
+    assert frame.clip_level_tile_dn.tolist() == [[16372, 16372], [16372, 16372]]
     assert frame.bayer_dn.max() == 16628
 
 
@@ -79,7 +80,7 @@ def test_inspect_prints_one_json_line_per_file_and_refuses_a_truncated_copy(arw,
     assert len(lines) == 1
     summary = json.loads(lines[0])
     assert summary["model"] == "SONY ILCE-7RM3" and summary["format"] == "ARW" and summary["cfa"] == "RGGB"
-    assert summary["clip_level_dn"] == [16383.0, 16372.0, 16372.0, 16372.0] and summary["clip_below_white"]
+    assert summary["clip_level_dn"] == [16372.0] * 4 and summary["clip_below_white"]
     assert 0 < summary["clipped_fraction"] < 1e-4 and summary["colour_matrix_source"] == "LibRaw"
     assert err.count("\n") == 1 and "half.ARW" in err and "truncated" in err
     with pytest.raises(InputError, match="truncated"):
@@ -539,3 +540,18 @@ def test_a_file_without_a_capture_time_has_none_and_a_model_that_repeats_the_mak
                      model="ILCE-7RM3")
     assert read_raw_metadata(path).camera_model == "SONY ILCE-7RM3"
     assert read_raw_metadata(path).timestamp == dt.datetime(2026, 11, 24, 12, 0, 0)
+
+
+def test_a_small_lamp_on_a_body_clipping_below_its_white_level_is_clipped_in_every_position(tmp_path):
+    """A 3 x 3 px lamp on a body that clips at 15 000 DN under a white level of 16 383 clips two to four samples
+    of each CFA position, fewer than a pile-up needs: every position kept 16 383, the lamp read 0.91 of white and
+    reconstruct said "no clipped pixels". The four positions' samples together show the sensor's pile-up."""
+    from hdrcam.io.ldr_frame import raw_relative_rgb
+    from hdrcam.io.raw import read_raw
+
+    radiance = np.tile(2000.0 + 30.0 * np.arange(160), (120, 1))  # DN per second above black
+    radiance[40:43, 60:63] = 1e6
+    path = write_dng(tmp_path / "lamp.dng", sensor_dn(radiance, 0.1, np.random.default_rng(19), clip_dn=15000))
+    frame = read_raw(path)
+    assert frame.clip_level_tile_dn.tolist() == [[15000, 15000], [15000, 15000]]
+    assert np.all(raw_relative_rgb(frame)[41, 61] == 1.0)
