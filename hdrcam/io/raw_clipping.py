@@ -40,33 +40,39 @@ BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-u
 
 def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float) -> np.ndarray:
     """2 x 2 float32 tile of clip levels in DN (absolute, like the data), one per CFA position; positions that found
-    no pile-up of their own take the pile-up of all positions' samples together (:func:`shared_pile_up`)."""
+    no pile-up of their own take the pile-up of all positions' samples together (:func:`_shared_pile_up`)."""
     levels = np.empty((2, 2), np.float32)
+    histograms = {}
     for row in range(2):
         for column in range(2):
-            levels[row, column] = channel_clip_level(bayer_dn[row::2, column::2], float(black_tile_dn[row, column]),
-                                                     white_level_dn)
-    return shared_pile_up(levels, bayer_dn, black_tile_dn, white_level_dn)
+            samples, black = bayer_dn[row::2, column::2], float(black_tile_dn[row, column])
+            histograms[row, column] = _top_histogram(samples, black, white_level_dn)
+            levels[row, column] = _clip_level(samples, black, white_level_dn, histograms[row, column])
+    return _shared_pile_up(levels, bayer_dn, histograms, float(np.mean(black_tile_dn)), white_level_dn)
 
 
-def shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, black_tile_dn: np.ndarray,
-                   white_level_dn: float) -> np.ndarray:
+def _shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, histograms: dict, black_dn: float,
+                    white_level_dn: float) -> np.ndarray:
     """``levels_dn`` (2 x 2, absolute DN) with each position left at the white level given the pile-up of the
-    four positions' samples together, found in the top part of the range as one position's is, where its own
-    brightest samples reach it (within PILE_WIDTH_DN) and none goes above it. A small light clips a few samples
-    of each position - a 3 x 3 px lamp two or four - fewer than MIN_PILE_SAMPLES: on a body clipping at 15 000 DN
-    under a white level of 16 383, such a lamp read 0.91 of white and "no clipped pixels"; one sensor's ADC clips
-    all positions at one level (module docstring). Only the top part is searched: a stuck readout far below white
-    is no sensor's clip level."""
+    four positions' samples together (their top-part ``histograms`` summed: no second pass over the data), where
+    its own brightest samples reach it (within PILE_WIDTH_DN) and none goes above it. A small light clips a few
+    samples of each position - a 3 x 3 px lamp two or four - fewer than MIN_PILE_SAMPLES: on a body clipping at
+    15 000 DN under a white level of 16 383, such a lamp read 0.91 of white and "no clipped pixels"; one sensor's
+    ADC clips all positions at one level (module docstring). Only the top part is searched: a stuck readout far
+    below white is no sensor's clip level."""
     unfound = levels_dn >= white_level_dn
     if not unfound.any():
         return levels_dn
-    shared = _pile_up(bayer_dn, float(np.mean(black_tile_dn)), white_level_dn, at_ceiling_only=False)
-    if shared is None or shared >= white_level_dn:
+    low = min(start for start, _ in histograms.values())
+    shared = np.zeros(max(start - low + counts.size for start, counts in histograms.values()), np.int64)
+    for start, counts in histograms.values():
+        shared[start - low:start - low + counts.size] += counts
+    level = _pile_in(shared, low, white_level_dn - black_dn, white_level_dn, at_ceiling_only=False)
+    if level is None or level >= white_level_dn:
         return levels_dn
     brightest = np.array([[bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
-    reaches = (brightest <= shared) & (brightest >= shared - PILE_WIDTH_DN)  # its own few samples clipped there
-    return np.where(unfound & reaches, shared, levels_dn).astype(np.float32)
+    reaches = (brightest <= level) & (brightest >= level - PILE_WIDTH_DN)  # its own few samples clipped there
+    return np.where(unfound & reaches, level, levels_dn).astype(np.float32)
 
 
 def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float,
@@ -93,7 +99,13 @@ def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: 
     what the sensor delivers (a DNG without WhiteLevel defaults to 2^bits - 1: 12-bit data in 16-bit samples),
     so a pile-up at the largest sample, found the same way below it, is taken instead - unless that sample is
     within MIN_SIGNAL of black (a frame with the lens cap on holds no light to clip)."""
-    level = _pile_up(samples_dn, black_dn, white_level_dn, at_ceiling_only=False)
+    return _clip_level(samples_dn, black_dn, white_level_dn, _top_histogram(samples_dn, black_dn, white_level_dn))
+
+
+def _clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: float, histogram: tuple) -> float:
+    """:func:`channel_clip_level` given the samples' ``histogram`` above the top part (:func:`_top_histogram`)."""
+    low, counts = histogram
+    level = _pile_in(counts, low, white_level_dn - black_dn, white_level_dn, at_ceiling_only=False)
     if level is None and samples_dn.size:
         largest = float(samples_dn.max())
         if largest >= black_dn + MIN_SIGNAL * (white_level_dn - black_dn) and \
@@ -105,9 +117,20 @@ def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: 
 def _pile_up(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float, at_ceiling_only: bool) -> float | None:
     """The most populated value in the top part of black..``ceiling_dn`` if it is a pile-up (module docstring;
     ``at_ceiling_only``: only a pile-up at ``ceiling_dn`` itself counts), else None."""
-    span = ceiling_dn - black_dn
-    low = int(np.ceil(black_dn + SEARCH_FROM * span))
-    counts = _counts_from(samples_dn, low)  # a pile-up above the ceiling is found (and capped) as well
+    low, counts = _top_histogram(samples_dn, black_dn, ceiling_dn)
+    return _pile_in(counts, low, ceiling_dn - black_dn, ceiling_dn, at_ceiling_only)
+
+
+def _top_histogram(samples_dn: np.ndarray, black_dn: float, ceiling_dn: float) -> tuple[int, np.ndarray]:
+    """(low, counts): the first value of the top part of black..``ceiling_dn`` and the counts of each integer value
+    from it up (a pile-up above the ceiling is found, and capped, as well)."""
+    low = int(np.ceil(black_dn + SEARCH_FROM * (ceiling_dn - black_dn)))
+    return low, _counts_from(samples_dn, low)
+
+
+def _pile_in(counts: np.ndarray, low: int, span: float, ceiling_dn: float, at_ceiling_only: bool) -> float | None:
+    """The pile-up among ``counts`` (of each value from ``low`` up; ``span``: the black-to-ceiling range), else
+    None (:func:`_pile_up`)."""
     if counts.sum() < MIN_PILE_SAMPLES:
         return None
     peak = int(np.argmax(counts))
