@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -30,7 +31,8 @@ def register(commands) -> None:
                                "each checkpoint's own NAME-partner.pt beside it, where there is one)")
     partners.add_argument("--no-partner", action="store_true",
                           help="score reconstruct --no-partner: each checkpoint's network alone")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default: a new evaluate-YYYYMMDD-HHMMSS in the working directory)")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -56,6 +58,17 @@ def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
     return labelled
 
 
+def fresh_output_folder() -> Path:
+    """A folder name in the working directory that nothing holds yet: evaluate-YYYYMMDD-HHMMSS (local time), with
+    -2, -3, ... after it where that is taken, so a run without --out never overwrites an earlier one."""
+    stem = time.strftime("evaluate-%Y%m%d-%H%M%S")
+    folder, number = Path(stem), 1
+    while os.path.lexists(folder):  # a link by that name, even a broken one, is taken too
+        number += 1
+        folder = Path(f"{stem}-{number}")
+    return folder
+
+
 def run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -69,6 +82,8 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.train.checkpoint import load_model
 
     check_test_crop(arguments.size)
+    if arguments.out is None:
+        arguments.out = fresh_output_folder()
     check_image_size("--size", arguments.size, arguments.size, WINDOW_BYTES_PER_PIXEL + FRAME_BYTES_PER_PIXEL,
                      "use a smaller --size")
     inputs = [path for path in (*_labelled(arguments.checkpoint).values(), arguments.psf) if path is not None]
