@@ -95,7 +95,7 @@ def run(arguments: argparse.Namespace) -> int:
         load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
     partners = {label: resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)
                 for label, model in models.items()}  # before any scoring
-    source = SceneSource(arguments.data)
+    source = SceneSource(arguments.data, lenient=True)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()
     with tqdm(total=count, desc="evaluate", unit="image") as progress:

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, failure_message
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
@@ -17,11 +17,13 @@ from hdrcam.io.tiff_image import read_tiff_rgb
 HDR_SUFFIXES = (".exr", *RADIANCE_SUFFIXES)
 
 
-def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
+def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak: bool = False) -> np.ndarray:
     """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance (by its
     magic; hdrcam.io.radiance) or float TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images
     (display images) refused. A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog
-    and Garden) is read as grey, R = G = B = Y."""
+    and Garden) is read as grey, R = G = B = Y. ``infinite_as_peak``: +Inf pixels (light beyond the format: a
+    half-float sun above 65504 is stored as Inf) are taken as the image's largest finite value, with a warning,
+    instead of refused."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -42,8 +44,14 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
             raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
         _refuse_display_image(path, image)
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
-    if not np.isfinite(image).all():
-        raise InputError(f"{path}: image has NaN or Inf pixels")
+    finite = np.isfinite(image)
+    if not finite.all():
+        if not infinite_as_peak or not np.all(finite | (image == np.inf)):
+            raise InputError(f"{path}: image has NaN or {'-' if infinite_as_peak else ''}Inf pixels")
+        peak = float(image.max(where=finite, initial=0.0))
+        warnings.warn(f"{path}: {np.count_nonzero(~finite)} values are +Inf (light beyond the file format's range); "
+                      f"taken as the image's largest finite value, {peak:.6g}")
+        image = np.where(finite, image, np.float32(peak))
     if warn_negative:
         warn_negative_radiance(path, image)
     return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light
@@ -95,11 +103,28 @@ def within_safe_range(image: np.ndarray) -> np.ndarray:
 
 
 class HdrFolder:
-    """The images of a folder, read once and kept in memory (float32)."""
+    """The images of a folder, read once and kept in memory (float32). ``lenient`` (evaluation): a file that
+    cannot be read is left out with a warning naming it and why, and kept in ``skipped`` as (path, reason), and
+    +Inf pixels are taken as the image's largest finite value (read_hdr_image); an error only when no file can
+    be read. Otherwise (training) either is an error."""
 
-    def __init__(self, folder: Path):
-        self.files = hdr_files(folder)
-        self.images = [within_safe_range(read_hdr_image(path)) for path in self.files]
+    def __init__(self, folder: Path, *, lenient: bool = False):
+        self.files, self.images, self.skipped = [], [], []
+        for path in hdr_files(folder):
+            try:
+                image = read_hdr_image(path, infinite_as_peak=lenient)
+            except (InputError, OSError) as error:
+                if not lenient:
+                    raise
+                message = failure_message(error)
+                reason = message.removeprefix(f"{path}: ")
+                warnings.warn(f"{path}: not evaluated - {reason}")
+                self.skipped.append((path, reason))
+                continue
+            self.files.append(path)
+            self.images.append(within_safe_range(image))
+        if not self.files:
+            raise InputError(f"{folder}: none of its {len(self.skipped)} HDR files could be read; nothing to evaluate")
 
     def __len__(self) -> int:
         return len(self.images)

@@ -86,10 +86,12 @@ class SceneSource:
     """Training draws from a mixture of ``procedural`` and folders of .exr/.hdr files (module docstring);
     a fixed test set from the first of them."""
 
-    def __init__(self, data: str | Path):
+    def __init__(self, data: str | Path, *, lenient: bool = False):
+        """``lenient`` (evaluation): unreadable photographs are left out with a warning (HdrFolder)."""
         self.description = str(data)
         self.mixture = parse_mixture(str(data))
-        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source)) for source, _ in self.mixture]
+        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source), lenient=lenient)
+                        for source, _ in self.mixture]
         weights = np.array([weight for _, weight in self.mixture])
         self.probabilities = weights / weights.sum()
         self.folder = self.folders[0]

@@ -3,11 +3,34 @@ that clash or are not UTF-8, photographs that cannot be scored."""
 
 from __future__ import annotations
 
+import csv
 import time
 
+import numpy as np
+import OpenEXR
+import pytest
+
 from hdrcam.cli import main
+from hdrcam.data.scenes import SceneSource
+from hdrcam.errors import InputError
+from hdrcam.io.exr import write_exr
 
 QUICK = ["evaluate", "--size", "32", "--count", "1", "--no-partner"]
+
+
+def _lamps(seed: int = 0) -> np.ndarray:
+    """A 96 x 96 photograph of scattered lights (relative radiance), scaled by the protocol without a plateau."""
+    return np.random.default_rng(seed).lognormal(0.0, 1.5, (96, 96, 3)).astype(np.float32)
+
+
+def _exr(path, channels: dict[str, np.ndarray]) -> None:
+    """An EXR written as given, Inf and NaN included (hdrcam's own writer refuses them)."""
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(path))
+
+
+def _scored(out) -> list[str]:
+    with open(out / "metrics.csv", newline="", encoding="utf-8") as table:
+        return list(dict.fromkeys(row["image"] for row in csv.DictReader(table)))
 
 
 def test_without_out_each_run_writes_a_new_folder_in_the_working_directory(tmp_path, monkeypatch, capsys):
@@ -19,3 +42,35 @@ def test_without_out_each_run_writes_a_new_folder_in_the_working_directory(tmp_p
     printed = capsys.readouterr().out
     for name in ("evaluate-20250102-030405-2", "evaluate-20250102-030405-3"):
         assert (tmp_path / name / "summary.md").is_file() and f"wrote {name}/metrics.csv" in printed
+
+
+def test_unreadable_photographs_are_left_out_by_name_and_a_sun_stored_as_inf_is_scored(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    write_exr(data / "lamps.exr", _lamps())
+    sun = _lamps(1).astype(np.float16)
+    sun[40:44, 40:44] = np.inf  # a half-float sun above 65504
+    _exr(data / "sun.exr", {"RGB": sun})
+    damaged = _lamps(2)
+    damaged[5, 5, 1] = np.nan
+    _exr(data / "nan.exr", {"RGB": damaged})
+    _exr(data / "layered.exr", {"beauty": _lamps(3)})  # channels beauty.R, beauty.G, beauty.B
+    (data / "preview.hdr").write_bytes(b"\xff\xd8\xff\xe0" + bytes(64))  # a JPEG under an HDR name
+    (data / "gone.exr").symlink_to(tmp_path / "missing.exr")
+    with pytest.warns(UserWarning) as warned:
+        assert main(["evaluate", "--data", str(data), "--size", "64", "--no-partner",
+                     "--out", str(tmp_path / "out")]) == 0
+    assert _scored(tmp_path / "out") == ["lamps", "sun"]
+    messages = [str(warning.message) for warning in warned]
+    for name, why in [("nan.exr", "NaN"), ("layered.exr", "beauty.R"), ("preview.hdr", "cannot read"),
+                      ("gone.exr", "no such file")]:
+        assert any(f"{name}: not evaluated - " in message and why in message for message in messages), name
+    assert any("sun.exr: 48 values are +Inf" in message for message in messages)
+    with pytest.raises(InputError, match="gone.exr: no such file"):  # training still refuses the first bad file
+        SceneSource(data)
+
+
+def test_a_folder_with_nothing_readable_is_refused(tmp_path, capsys):
+    (tmp_path / "preview.exr").write_bytes(b"not an image")
+    assert main(["evaluate", "--data", str(tmp_path), *QUICK[1:], "--out", str(tmp_path / "out")]) == 1
+    assert "nothing to evaluate" in capsys.readouterr().err and not (tmp_path / "out").exists()
