@@ -98,10 +98,11 @@ def run(arguments: argparse.Namespace) -> int:
     source = SceneSource(arguments.data, lenient=True)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()
+    unscored = [] if source.folder is None else [(path.name, reason) for path, reason in source.folder.skipped]
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
-                                         partner=partners, progress=progress)
+                                         partner=partners, progress=progress, unscored=unscored)
     if not rows:
         raise InputError(f"{arguments.data}: no photograph could be scaled so that 1.5 % of its pixels exceed 1 "
                          "(each has a plateau at its brightest); nothing scored")
@@ -114,8 +115,10 @@ def run(arguments: argparse.Namespace) -> int:
     if paired:
         description += (" Partner networks (reconstruct keeps what both paint unless the streaks confirm one): "
                         + ", ".join(paired) + ".")
-    write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
-    print(summary_markdown(rows, description), end="")
+    noun = "test scenes" if source.folder is None else "photographs"
+    write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite, unscored=unscored,
+                 noun=noun)
+    print(summary_markdown(rows, description, unscored=unscored, noun=noun), end="")
     written = "metrics.csv, summary.md" + (", examples.jpg" if examples else "")
     print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/{written}")
     return 0

@@ -63,11 +63,13 @@ def check_test_crop(size_px: int) -> None:
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
-                    partner="auto", progress=None) -> tuple[list[ScoredImage], list[Example]]:
+                    partner="auto", progress=None, unscored: list[tuple[str, str]] | None = None
+                    ) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
     ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
     model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
-    missing: none)."""
+    missing: none). A scene the protocol cannot scale is left out with a warning, and appended to ``unscored``
+    (where given) as (name, reason)."""
     partners = {label: resolve_partner(model, partner.get(label) if isinstance(partner, dict) else partner)
                 for label, model in models.items()}
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
@@ -82,6 +84,8 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
         shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px)
         if shortfall:
             warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
+            if unscored is not None:
+                unscored.append((name, f"scaled as the protocol asks, {shortfall}"))
             if progress:
                 progress.update()
             continue

@@ -74,3 +74,20 @@ def test_a_folder_with_nothing_readable_is_refused(tmp_path, capsys):
     (tmp_path / "preview.exr").write_bytes(b"not an image")
     assert main(["evaluate", "--data", str(tmp_path), *QUICK[1:], "--out", str(tmp_path / "out")]) == 1
     assert "nothing to evaluate" in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_the_summary_says_how_many_photographs_were_scored_and_names_the_others(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    write_exr(data / "lamps.exr", _lamps())
+    write_exr(data / "uniform.exr", np.full((96, 96, 3), 0.5, np.float32))  # no scale leaves 1.5 % above 1
+    damaged = _lamps(2)
+    damaged[5, 5, 1] = np.nan
+    _exr(data / "nan.exr", {"RGB": damaged})
+    with pytest.warns(UserWarning):
+        assert main(["evaluate", "--data", str(data), "--size", "64", "--no-partner",
+                     "--out", str(tmp_path / "out")]) == 0
+    summary = (tmp_path / "out" / "summary.md").read_text(encoding="utf-8")
+    assert "1 of 3 photographs scored" in summary
+    assert "- nan.exr: image has NaN" in summary
+    assert "- uniform: scaled as the protocol asks, " in summary
