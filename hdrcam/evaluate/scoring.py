@@ -78,7 +78,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     margin = max(capture.margin_px for capture in captures.values())
     first = next(iter(models))
     rows, shown = [], []
-    for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
+    for index, (name, scene, scene_seed) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
         shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px)
@@ -96,7 +96,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             crop = margin - capture.margin_px
             local = radiance[..., crop:radiance.shape[-2] - crop, crop:radiance.shape[-1] - crop]
             with torch.no_grad():
-                ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
+                ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + scene_seed))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
             result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check,
                                  partner=partners[label])

@@ -18,9 +18,9 @@ from hdrcam.io.exr import write_exr
 QUICK = ["evaluate", "--size", "32", "--count", "1", "--no-partner"]
 
 
-def _lamps(seed: int = 0) -> np.ndarray:
-    """A 96 x 96 photograph of scattered lights (relative radiance), scaled by the protocol without a plateau."""
-    return np.random.default_rng(seed).lognormal(0.0, 1.5, (96, 96, 3)).astype(np.float32)
+def _lamps(seed: int = 0, side_px: int = 96) -> np.ndarray:
+    """A photograph of scattered lights (relative radiance), scaled by the protocol without a plateau."""
+    return np.random.default_rng(seed).lognormal(0.0, 1.5, (side_px, side_px, 3)).astype(np.float32)
 
 
 def _exr(path, channels: dict[str, np.ndarray]) -> None:
@@ -91,3 +91,23 @@ def test_the_summary_says_how_many_photographs_were_scored_and_names_the_others(
     assert "1 of 3 photographs scored" in summary
     assert "- nan.exr: image has NaN" in summary
     assert "- uniform: scaled as the protocol asks, " in summary
+
+
+def _rows(out) -> dict[tuple[str, str], dict[str, str]]:
+    with open(out / "metrics.csv", newline="", encoding="utf-8") as table:
+        return {(row["image"], row["method"]): row for row in csv.DictReader(table)}
+
+
+def test_a_photographs_score_does_not_depend_on_the_files_beside_it(tmp_path):
+    alone, crowded = tmp_path / "alone", tmp_path / "crowded"
+    for folder in (alone, crowded):
+        folder.mkdir()
+        write_exr(folder / "lamps.exr", _lamps(0, 160))
+    write_exr(crowded / "a-first.exr", _lamps(1, 160))  # sorted before lamps.exr: lamps moves to position 1
+    for folder in (alone, crowded):
+        assert main(["evaluate", "--data", str(folder), "--size", "64", "--no-partner",
+                     "--out", str(tmp_path / f"out-{folder.name}")]) == 0
+    before, after = _rows(tmp_path / "out-alone"), _rows(tmp_path / "out-crowded")
+    assert [key for key in after if key[0] == "lamps"] == list(before)
+    for key, row in before.items():
+        assert after[key] == row
