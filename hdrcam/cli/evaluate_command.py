@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int, random_seed
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, escaped_name
 from hdrcam.io.atomic import check_outputs
 
 
@@ -98,7 +98,8 @@ def run(arguments: argparse.Namespace) -> int:
     source = SceneSource(arguments.data, lenient=True)
     count = arguments.count if source.folder is None else len(source.folder)
     started = time.perf_counter()
-    unscored = [] if source.folder is None else [(path.name, reason) for path, reason in source.folder.skipped]
+    unscored = [] if source.folder is None else [(escaped_name(path.name), reason)
+                                                 for path, reason in source.folder.skipped]
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,

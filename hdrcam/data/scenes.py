@@ -28,7 +28,7 @@ from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
 from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, clipped_fraction,
                                     fraction_shortfall, scale_to_clipped_fraction)
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, escaped_name
 
 PROCEDURAL = "procedural"
 PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
@@ -188,7 +188,7 @@ class SceneSource:
                     warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
                                   "test crop: mirrored to fill it, and the mirrored copies are scored too")
                 crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
-                name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
+                name = escaped_name(path.stem if stems.count(path.stem) == 1 else path.name)  # sun.exr, sun.hdr
                 try:
                     scenes.append(TestScene(name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px), seed))
                 except InputError:  # no light to scale: kept unscaled (evaluate leaves it out, as it does any

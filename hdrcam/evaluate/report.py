@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hdrcam.errors import escaped_name
 from hdrcam.evaluate.metrics import HARM_DB
 from hdrcam.evaluate.scoring import Example, ScoredImage
 from hdrcam.io.atomic import atomic_paths, write_text_atomic
@@ -111,7 +112,7 @@ def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], de
     paths = [out / "metrics.csv", out / "summary.md"] + ([out / "examples.jpg"] if examples else [])
     with atomic_paths(paths, overwrite=overwrite) as temporaries:
         write_text_atomic(temporaries[0], metrics_csv(rows), overwrite=True)  # an error names the file
-        write_text_atomic(temporaries[1], summary_markdown(rows, description, unscored=unscored, noun=noun),
-                           overwrite=True)
+        summary = summary_markdown(rows, description, unscored=unscored, noun=noun)
+        write_text_atomic(temporaries[1], escaped_name(summary), overwrite=True)  # a folder's name, say
         if examples:
             write_jpeg(temporaries[2], examples_figure(examples), overwrite=True)

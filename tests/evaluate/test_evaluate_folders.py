@@ -4,6 +4,7 @@ that clash or are not UTF-8, photographs that cannot be scored."""
 from __future__ import annotations
 
 import csv
+import os
 import time
 
 import numpy as np
@@ -111,3 +112,16 @@ def test_a_photographs_score_does_not_depend_on_the_files_beside_it(tmp_path):
     assert [key for key in after if key[0] == "lamps"] == list(before)
     for key, row in before.items():
         assert after[key] == row
+
+
+def test_a_file_name_that_is_not_utf8_is_written_with_its_odd_bytes_escaped(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    write_exr(data / "lamps.exr", _lamps())
+    (data / os.fsdecode(b"caf\xe9.exr")).write_bytes((data / "lamps.exr").read_bytes())  # Latin-1, from a camera
+    (data / os.fsdecode(b"n\xe9ant.exr")).write_bytes(b"not an image")
+    with pytest.warns(UserWarning):
+        assert main(["evaluate", "--data", str(data), "--size", "64", "--no-partner",
+                     "--out", str(tmp_path / "out")]) == 0
+    assert _scored(tmp_path / "out") == ["caf\\xe9", "lamps"]
+    assert "- n\\xe9ant.exr: " in (tmp_path / "out" / "summary.md").read_text(encoding="utf-8")
