@@ -72,7 +72,7 @@ def fresh_output_folder() -> Path:
 def run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from hdrcam.data.scenes import SceneSource
+    from hdrcam.data.scenes import PROCEDURAL, SceneSource
     from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
     from hdrcam.evaluate.scoring import check_test_crop, evaluate_models
     from hdrcam.optics.psf_file import load_psf
@@ -81,6 +81,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.api import resolve_partner
     from hdrcam.train.checkpoint import load_model
 
+    started = time.perf_counter()  # the time printed at the end: reading, cropping and scoring
     check_test_crop(arguments.size)
     if arguments.out is None:
         arguments.out = fresh_output_folder()
@@ -95,9 +96,9 @@ def run(arguments: argparse.Namespace) -> int:
         load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
     partners = {label: resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)
                 for label, model in models.items()}  # before any scoring
-    source = SceneSource(arguments.data, lenient=True)
+    with tqdm(desc="read", unit="file", disable=arguments.data == PROCEDURAL) as reading:
+        source = SceneSource(arguments.data, lenient=True, progress=reading)
     count = arguments.count if source.folder is None else len(source.folder)
-    started = time.perf_counter()
     unscored = [] if source.folder is None else [(escaped_name(path.name), reason)
                                                  for path, reason in source.folder.skipped]
     with tqdm(total=count, desc="evaluate", unit="image") as progress:

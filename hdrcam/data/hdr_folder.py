@@ -106,11 +106,17 @@ class HdrFolder:
     """The images of a folder, read once and kept in memory (float32). ``lenient`` (evaluation): a file that
     cannot be read is left out with a warning naming it and why, and kept in ``skipped`` as (path, reason), and
     +Inf pixels are taken as the image's largest finite value (read_hdr_image); an error only when no file can
-    be read. Otherwise (training) either is an error."""
+    be read. Otherwise (training) either is an error. ``progress``: a tqdm-like bar, its total raised by the
+    number of files, each named as it is read (a folder of large photographs takes minutes)."""
 
-    def __init__(self, folder: Path, *, lenient: bool = False):
+    def __init__(self, folder: Path, *, lenient: bool = False, progress=None):
         self.files, self.images, self.skipped = [], [], []
-        for path in hdr_files(folder):
+        paths = hdr_files(folder)
+        if progress is not None:
+            progress.total = (progress.total or 0) + len(paths)
+        for path in paths:
+            if progress is not None:
+                progress.set_postfix_str(path.name)
             try:
                 image = read_hdr_image(path, infinite_as_peak=lenient)
             except (InputError, OSError) as error:
@@ -120,9 +126,11 @@ class HdrFolder:
                 reason = message.removeprefix(f"{path}: ")
                 warnings.warn(f"{path}: not evaluated - {reason}")
                 self.skipped.append((path, reason))
-                continue
-            self.files.append(path)
-            self.images.append(within_safe_range(image))
+            else:
+                self.files.append(path)
+                self.images.append(within_safe_range(image))
+            if progress is not None:
+                progress.update()
         if not self.files:
             raise InputError(f"{folder}: none of its {len(self.skipped)} HDR files could be read; nothing to evaluate")
 

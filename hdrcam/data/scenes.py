@@ -18,7 +18,7 @@ import warnings
 import zlib
 
 from pathlib import Path
-from typing import NamedTuple
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
@@ -103,11 +103,12 @@ class SceneSource:
     """Training draws from a mixture of ``procedural`` and folders of .exr/.hdr files (module docstring);
     a fixed test set from the first of them."""
 
-    def __init__(self, data: str | Path, *, lenient: bool = False):
-        """``lenient`` (evaluation): unreadable photographs are left out with a warning (HdrFolder)."""
+    def __init__(self, data: str | Path, *, lenient: bool = False, progress=None):
+        """``lenient`` (evaluation): unreadable photographs are left out with a warning; ``progress``: a tqdm-like
+        bar of the files read (HdrFolder)."""
         self.description = str(data)
         self.mixture = parse_mixture(str(data))
-        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source), lenient=lenient)
+        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source), lenient=lenient, progress=progress)
                         for source, _ in self.mixture]
         weights = np.array([weight for _, weight in self.mixture])
         self.probabilities = weights / weights.sum()
@@ -163,22 +164,21 @@ class SceneSource:
                          "so 1-3 % of their pixels exceed white (too little light, or a plateau at their brightest: "
                          "clipped at source); remove such photographs from --data")
 
-    def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[TestScene]:
+    def test_scenes(self, size_px: int, margin_px: int, count: int) -> Iterator[TestScene]:
         """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %
         above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.scored_crop); each
         named (night-NNN, or the file's stem - its name where two files share a stem) and seeded (TestScene): a
         photograph's crop by its file name, not its place in the folder. A photograph without
         light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
-        mirrored to fill it, with a warning."""
-        scenes = []
+        mirrored to fill it, with a warning. Each is cropped as it is asked for (a crop of a large panorama takes
+        seconds)."""
         if self.folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px + 2 * TEST_CONTEXT_PX)
             for index in range(count):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
                 scene = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
-                scenes.append(TestScene(f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px,
-                                                                                TEST_CONTEXT_PX, rng),
-                                                                    TEST_CLIPPED_FRACTION, margin_px), index))
+                yield TestScene(f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
+                                                                        rng), TEST_CLIPPED_FRACTION, margin_px), index)
         else:
             stems = [path.stem for path in self.folder.files]
             for path, image in zip(self.folder.files, self.folder.images):
@@ -190,11 +190,10 @@ class SceneSource:
                 crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
                 name = escaped_name(path.stem if stems.count(path.stem) == 1 else path.name)  # sun.exr, sun.hdr
                 try:
-                    scenes.append(TestScene(name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px), seed))
+                    scaled = _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)
                 except InputError:  # no light to scale: kept unscaled (evaluate leaves it out, as it does any
-                    # photograph it cannot scale, and names it)
-                    scenes.append(TestScene(name, np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32), seed))
-        return scenes
+                    scaled = np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32)  # photograph it cannot scale,
+                yield TestScene(name, scaled, seed)  # and names it)
 
 
 def _scaled(crop: np.ndarray, fraction: float, margin_px: int) -> np.ndarray:

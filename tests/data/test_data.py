@@ -64,12 +64,12 @@ def test_night_scenes_are_seeded_and_reach_two_to_the_eight():
 
 def test_procedural_source_scales_its_test_scenes_to_one_and_a_half_percent():
     source = SceneSource("procedural")
-    scenes = source.test_scenes(64, 8, 3)
+    scenes = list(source.test_scenes(64, 8, 3))
     assert [scene.name for scene in scenes] == ["night-000", "night-001", "night-002"]
     for _, scene, _ in scenes:
         assert scene.shape == (80, 80, 3)
         assert clipped_fraction(scene[8:-8, 8:-8]) == pytest.approx(0.015, abs=1.5 / 64 ** 2)
-    assert np.array_equal(scenes[0].radiance, source.test_scenes(64, 8, 1)[0].radiance)  # fixed test set
+    assert np.array_equal(scenes[0].radiance, next(source.test_scenes(64, 8, 1)).radiance)  # fixed test set
     training = source.training_scene(64, 8, np.random.default_rng(0))
     assert 0.01 - 1 / 64 ** 2 <= clipped_fraction(training[8:-8, 8:-8]) <= 0.03 + 1 / 64 ** 2
 
@@ -78,7 +78,7 @@ def test_procedural_source_scales_its_test_scenes_to_one_and_a_half_percent():
 def test_hdr_folder_reads_the_shared_openexr_images():
     folder = HdrFolder(SHARED_HDR)
     assert len(folder) >= 5 and all(image.min() >= 0.0 and image.ndim == 3 for image in folder.images)
-    scenes = SceneSource(SHARED_HDR).test_scenes(128, 16, 0)
+    scenes = list(SceneSource(SHARED_HDR).test_scenes(128, 16, 0))
     assert len(scenes) == len(folder)
 
 
@@ -273,7 +273,7 @@ def test_a_test_scenes_scored_centre_holds_a_highlight_and_does_not_depend_on_th
     size = 96
     centres = {}
     for margin in (8, 31, 127):
-        scenes = source.test_scenes(size, margin, 4)
+        scenes = list(source.test_scenes(size, margin, 4))
         centres[margin] = [scene.radiance[margin:margin + size, margin:margin + size] for scene in scenes]
         for (name, scene, _), centre in zip(scenes, centres[margin]):
             assert scene.shape == (size + 2 * margin, size + 2 * margin, 3)
@@ -297,7 +297,7 @@ def test_a_mixture_led_by_procedural_tests_on_procedural_scenes_only(tmp_path):
 def test_a_photograph_smaller_than_the_test_crop_is_warned_about(tmp_path):
     _lamps(tmp_path, height=80, width=120)
     with pytest.warns(UserWarning, match=r"p0.exr: 120 x 80 px, smaller than the 96 px test crop: mirrored"):
-        SceneSource(str(tmp_path)).test_scenes(96, 8, 0)
+        list(SceneSource(str(tmp_path)).test_scenes(96, 8, 0))
 
 
 def test_a_point_of_light_on_black_is_refused_with_how_many_pixels_hold_light():

@@ -125,3 +125,24 @@ def test_a_file_name_that_is_not_utf8_is_written_with_its_odd_bytes_escaped(tmp_
                      "--out", str(tmp_path / "out")]) == 0
     assert _scored(tmp_path / "out") == ["caf\\xe9", "lamps"]
     assert "- n\\xe9ant.exr: " in (tmp_path / "out" / "summary.md").read_text(encoding="utf-8")
+
+
+def test_reading_is_shown_file_by_file_and_counted_in_the_time_printed(tmp_path, monkeypatch, capsys):
+    from hdrcam.data import hdr_folder
+
+    data = tmp_path / "data"
+    data.mkdir()
+    write_exr(data / "lamps.exr", _lamps())
+    read = hdr_folder.read_hdr_image
+
+    def slow_read(path, **options):  # a large photograph on a slow disk
+        time.sleep(2.0)
+        return read(path, **options)
+
+    monkeypatch.setattr(hdr_folder, "read_hdr_image", slow_read)
+    started = time.perf_counter()
+    assert main(["evaluate", "--data", str(data), *QUICK[1:], "--out", str(tmp_path / "out")]) == 0
+    took = time.perf_counter() - started
+    shown = capsys.readouterr()
+    assert float(shown.out.rsplit("evaluated in ", 1)[1].split(" s;")[0]) > took - 1.0
+    assert "read: " in shown.err and "lamps.exr" in shown.err.split("evaluate: ")[0]
