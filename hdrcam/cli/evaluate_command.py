@@ -99,6 +99,7 @@ def run(arguments: argparse.Namespace) -> int:
     with tqdm(desc="read", unit="file", disable=arguments.data == PROCEDURAL) as reading:
         source = SceneSource(arguments.data, lenient=True, progress=reading)
     count = arguments.count if source.folder is None else len(source.folder)
+    noun = "test scenes" if source.folder is None else "photographs"
     unscored = [] if source.folder is None else [(escaped_name(path.name), reason)
                                                  for path, reason in source.folder.skipped]
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
@@ -106,8 +107,11 @@ def run(arguments: argparse.Namespace) -> int:
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
                                          partner=partners, progress=progress, unscored=unscored)
     if not rows:
-        raise InputError(f"{arguments.data}: no photograph could be scaled so that 1.5 % of its pixels exceed 1 "
-                         "(each has a plateau at its brightest); nothing scored")
+        shown = 3  # of the reasons: one line, however many photographs
+        reasons = "; ".join(f"{name}: {reason}" for name, reason in unscored[:shown])
+        more = f"; and {len(unscored) - shown} more, named in the warnings above" if len(unscored) > shown else ""
+        raise InputError(f"{arguments.data}: none of its {len(unscored)} {noun} could be scored ({reasons}{more}); "
+                         "nothing scored")
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "
@@ -117,7 +121,6 @@ def run(arguments: argparse.Namespace) -> int:
     if paired:
         description += (" Partner networks (reconstruct keeps what both paint unless the streaks confirm one): "
                         + ", ".join(paired) + ".")
-    noun = "test scenes" if source.folder is None else "photographs"
     write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite, unscored=unscored,
                  noun=noun)
     print(summary_markdown(rows, description, unscored=unscored, noun=noun), end="")

@@ -81,7 +81,8 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     for index, (name, scene, scene_seed) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
-        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px)
+        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px,
+                                       lit=int(np.count_nonzero(truth.max(axis=-1) > 0.0)))
         if shortfall:
             warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
             if unscored is not None:

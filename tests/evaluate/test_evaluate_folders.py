@@ -146,3 +146,14 @@ def test_reading_is_shown_file_by_file_and_counted_in_the_time_printed(tmp_path,
     shown = capsys.readouterr()
     assert float(shown.out.rsplit("evaluated in ", 1)[1].split(" s;")[0]) > took - 1.0
     assert "read: " in shown.err and "lamps.exr" in shown.err.split("evaluate: ")[0]
+
+
+def test_a_folder_of_dark_frames_is_refused_for_its_real_reason(tmp_path, capsys):
+    night = np.zeros((96, 96, 3), np.float32)
+    night[40:43, 40:43] = 50.0  # one small lamp: 9 lit pixels, fewer than 1.5 % of the 64 px crop
+    write_exr(tmp_path / "night.exr", night)
+    with pytest.warns(UserWarning, match="too few lit pixels: only 9 hold any light"):
+        assert main(["evaluate", "--data", str(tmp_path), "--size", "64", "--no-partner",
+                     "--out", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err
+    assert "night: " in error and "too few lit pixels" in error and "plateau" not in error
