@@ -79,16 +79,30 @@ def warn_negative_radiance(path: Path, image: np.ndarray) -> None:
 def hdr_files(folder: Path) -> list[Path]:
     """The HDR files in ``folder`` (sorted; hidden files - macOS's ._NAME.exr resource forks beside copied
     photographs - and folders named like them left out, a link to a missing file kept, to be named when read; a
-    .pic only when it is a Radiance file: Apple's PICT pictures share the suffix); an error when there are none."""
+    .pic only when it is a Radiance file: Apple's PICT pictures share the suffix); an error when there are none.
+    Subfolders are not read: a warning names those that hold HDR files."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder} is not a folder of HDR images")
+    nested = sorted(p.name for p in folder.iterdir() if not p.name.startswith(".") and p.is_dir() and _holds_hdr(p))
+    if nested:
+        warnings.warn(f"{folder}: HDR files in its subfolders {', '.join(nested)} are not read (only the folder's "
+                      "own files are): give a subfolder as the folder, or move its files up")
     files = sorted(p for p in folder.iterdir()
                    if p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") and not p.is_dir()
                    and (p.suffix.lower() != ".pic" or not p.is_file() or is_radiance_file(p)))  # .pic: also PICT
     if not files:
         raise InputError(f"{folder} holds no .exr or .hdr files")
     return files
+
+
+def _holds_hdr(folder: Path) -> bool:
+    """Whether ``folder`` itself (not its subfolders) holds a file with an HDR suffix; False where it cannot be
+    listed."""
+    try:
+        return any(p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") for p in folder.iterdir())
+    except OSError:
+        return False
 
 
 SAFE_PEAK = 2.0 ** 64  # far above any photograph's radiance, far below float32's 3.4e38

@@ -157,3 +157,12 @@ def test_a_folder_of_dark_frames_is_refused_for_its_real_reason(tmp_path, capsys
                      "--out", str(tmp_path / "out")]) == 1
     error = capsys.readouterr().err
     assert "night: " in error and "too few lit pixels" in error and "plateau" not in error
+
+
+def test_subfolders_holding_photographs_are_named_not_read(tmp_path):
+    write_exr(tmp_path / "lamps.exr", _lamps())
+    for name, held in [("day", "sun.exr"), ("night", "moon.hdr"), ("notes", "notes.txt")]:
+        (tmp_path / name).mkdir()
+        (tmp_path / name / held).write_bytes(b"")
+    with pytest.warns(UserWarning, match=r"HDR files in its subfolders day, night are not read"):
+        assert [path.name for path in SceneSource(tmp_path).folder.files] == ["lamps.exr"]
