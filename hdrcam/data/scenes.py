@@ -167,7 +167,8 @@ class SceneSource:
     def test_scenes(self, size_px: int, margin_px: int, count: int) -> Iterator[TestScene]:
         """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %
         above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.scored_crop); each
-        named (night-NNN, or the file's stem - its name where two files share a stem) and seeded (TestScene): a
+        named (night-NNN, or the file's stem - its name where another file of the folder, read or not, shares the
+        stem or is named so: Bonita.exr beside Bonita.exr.hdr) and seeded (TestScene): a
         photograph's crop by its file name, not its place in the folder. A photograph without
         light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
         mirrored to fill it, with a warning. Each is cropped as it is asked for (a crop of a large panorama takes
@@ -180,7 +181,8 @@ class SceneSource:
                 yield TestScene(f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
                                                                         rng), TEST_CLIPPED_FRACTION, margin_px), index)
         else:
-            stems = [path.stem for path in self.folder.files]
+            listed = [*self.folder.files, *(path for path, _ in self.folder.skipped)]
+            stems, names = [path.stem for path in listed], {path.name for path in listed}
             for path, image in zip(self.folder.files, self.folder.images):
                 seed = name_seed(path.name)
                 rng = np.random.default_rng(TEST_SEED_BASE + seed)
@@ -188,7 +190,8 @@ class SceneSource:
                     warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
                                   "test crop: mirrored to fill it, and the mirrored copies are scored too")
                 crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
-                name = escaped_name(path.stem if stems.count(path.stem) == 1 else path.name)  # sun.exr, sun.hdr
+                unique = stems.count(path.stem) == 1 and path.stem not in names  # Bonita.exr.hdr's stem is
+                name = escaped_name(path.stem if unique else path.name)  # Bonita.exr's name
                 try:
                     scaled = _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)
                 except InputError:  # no light to scale: kept unscaled (evaluate leaves it out, as it does any

@@ -195,6 +195,9 @@ def test_test_scenes_of_files_sharing_a_stem_keep_distinct_names(tmp_path):
     _write_exr(tmp_path / "moon.exr", image)
     names = [scene.name for scene in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
     assert names == ["moon", "sun.exr", "sun.hdr"]
+    cv2.imwrite(str(tmp_path / "sun.exr.hdr"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))  # its stem: sun.exr's name
+    names = [scene.name for scene in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
+    assert names == ["moon", "sun.exr", "sun.exr.hdr", "sun.hdr"]
 
 
 def test_a_training_photograph_without_light_is_refused_by_name_before_training(tmp_path):
