@@ -139,6 +139,12 @@ def failure_message(error: BaseException) -> str | None:
     return None
 
 
+def escaped_name(text: str) -> str:
+    """``text`` with the bytes of a file name that is not valid UTF-8 (held by Python as lone surrogates) written
+    as \\xNN, so it can be written out as UTF-8: b"caf\\xe9.exr" -> "caf\\xe9.exr"."""
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def one_line(message: str) -> str:
     """``message`` with control characters (newlines in a file name, say) escaped, so it stays one line."""
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)

@@ -481,7 +481,7 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
         raise InputError("checkpoints: a dict of label -> checkpoint path (None: the shipped checkpoint)")
     models = {label: load_model(Path(path) if path else None, vgg_weights=Path(vgg_weights) if vgg_weights else None)
               for label, path in (checkpoints or {"hdrcam": None}).items()}
-    source = SceneSource(data)
+    source = SceneSource(data, lenient=True)
     count = count if source.folder is None else len(source.folder)
     return evaluate_models(models, source, size_px=size_px, count=count, psf=load_psf(Path(psf)) if psf else None,
                            seed=seed, progress=progress)

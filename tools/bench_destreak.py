@@ -49,7 +49,8 @@ def main() -> None:
     angles = np.random.default_rng(0)
     scores: dict[str, list[float]] = {"streaked frame": [], "streak fit": []}
     zones, fit_errors, harm, harm_db = [], [], [], []
-    for index, (name, scene) in enumerate(SceneSource("procedural").test_scenes(arguments.size, margin, arguments.count)):
+    scenes = SceneSource("procedural").test_scenes(arguments.size, margin, arguments.count)
+    for index, (name, scene, _) in enumerate(scenes):
         angle = sample_windshield_angle_deg(angles)
         streaked = capture_scene(scene, two_point_star(PSF_SIZE_PX, angle), profile, seed=index)
         reference = capture_scene(scene, dirac(PSF_SIZE_PX), profile, seed=index)

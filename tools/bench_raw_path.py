@@ -8,8 +8,8 @@ Per photograph (the folder's .exr/.hdr files, sorted, as `hdrcam evaluate --data
 
 1. Test crop as `hdrcam evaluate` takes it (hdrcam.data.scenes.SceneSource.test_scenes): hdrcam.data.crops.scored_crop,
    512 + 2 m px (m = PSF size // 2 = 31 for the shipped 63 px PSF) about a bright pixel in its centre 512 px, with rng
-   seed TEST_SEED_BASE + the file's index, scaled by scale_to_clipped_fraction so exactly 1.5 % of the centre 512 x 512
-   pixels have a channel above 1, clipped at 2^8. Units: linear sRGB, 1.0 = clip (the scene as evaluate uses it).
+   seed TEST_SEED_BASE + the CRC-32 of the file's name, scaled by scale_to_clipped_fraction so exactly 1.5 % of the
+   centre 512 x 512 pixels have a channel above 1, clipped at 2^8. Units: linear sRGB, 1.0 = clip (the scene as evaluate uses it).
 2. Capture with the simulated A7 as a user would: the padded crop is written as a scene EXR and the
    checkpoint's PSF as a PSF EXR, then
        hdrcam capture bracket --camera sim --profile PROFILE --scene scene.exr --psf psf.exr
@@ -75,7 +75,7 @@ from hdrcam.colorimetry import camera_from_srgb
 from hdrcam.data.crops import scored_crop
 from hdrcam.data.hdr_folder import hdr_files, read_hdr_image
 from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction, scale_to_clipped_fraction
-from hdrcam.data.scenes import TEST_CONTEXT_PX, TEST_SEED_BASE
+from hdrcam.data.scenes import TEST_CONTEXT_PX, TEST_SEED_BASE, name_seed
 from hdrcam.errors import HdrcamError
 from hdrcam.evaluate.metrics import psnr_linear, pu21_psnr
 from hdrcam.io.exr import read_exr, write_exr
@@ -113,9 +113,9 @@ def run_cli(arguments: list[str]) -> str:
     return result.stdout
 
 
-def evaluate_crop(path: Path, index: int, margin_px: int) -> np.ndarray:
-    """`hdrcam evaluate`'s test scene of the folder's ``index``-th file (SceneSource.test_scenes)."""
-    rng = np.random.default_rng(TEST_SEED_BASE + index)
+def evaluate_crop(path: Path, margin_px: int) -> np.ndarray:
+    """`hdrcam evaluate`'s test scene of the file (SceneSource.test_scenes)."""
+    rng = np.random.default_rng(TEST_SEED_BASE + name_seed(path.name))
     crop = scored_crop(read_hdr_image(path), SIZE_PX, margin_px, TEST_CONTEXT_PX, rng)
     centre = crop[margin_px:crop.shape[0] - margin_px, margin_px:crop.shape[1] - margin_px]
     return scale_to_clipped_fraction(crop, TEST_CLIPPED_FRACTION, scale_region=centre)
@@ -154,11 +154,11 @@ def radiometric_check(dng: Path, frame: np.ndarray, expected: np.ndarray, margin
             "rgb_median_abs_rel": float(np.median(np.abs(rgb_relative)))}
 
 
-def bench_one(path: Path, index: int, model, checkpoint: Path, profile, seed: int, work: Path,
+def bench_one(path: Path, model, checkpoint: Path, profile, seed: int, work: Path,
               reconstruct_options: list[str]) -> dict:
     psf = model.psf.astype(np.float32)
     margin = psf.shape[-1] // 2
-    crop = evaluate_crop(path, index, margin)  # sRGB, 1.0 = clip, (512 + 2m)^2 x 3
+    crop = evaluate_crop(path, margin)  # sRGB, 1.0 = clip, (512 + 2m)^2 x 3
     t_true = true_exposure_s(profile, psf, seed)
     gain = DEFAULT_REFERENCE_EXPOSURE_S / t_true  # radiance 1.0 -> exactly one full well = white
     folder = work / path.stem
@@ -250,8 +250,8 @@ def main() -> int:
         files = hdr_files(arguments.folder)[:arguments.count]
         rows = []
         with tempfile.TemporaryDirectory(prefix="bench_raw_path_") as work:
-            for index, path in enumerate(files):
-                rows.append(bench_one(path, index, model, checkpoint, profile, arguments.seed, Path(work),
+            for path in files:
+                rows.append(bench_one(path, model, checkpoint, profile, arguments.seed, Path(work),
                                       (["--no-mirror-check"] if arguments.no_mirror_check else []) +
                                       (["--partner", str(arguments.partner)] if arguments.partner else []) +
                                       (["--no-partner"] if arguments.no_partner else [])))

@@ -108,7 +108,7 @@ def main() -> int:
              f"unclipped pixels, and pixels it raises by more than {VISIBLE_RISE:g}.", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     totals = []
-    for index, (name, scene) in enumerate(SceneSource(arguments.data).test_scenes(SIZE_PX, margin, arguments.count)):
+    for index, (name, scene, _) in enumerate(SceneSource(arguments.data).test_scenes(SIZE_PX, margin, arguments.count)):
         truth = scene[margin:margin + SIZE_PX, margin:margin + SIZE_PX]
         local = {label: scene[margin - o.margin_px:scene.shape[0] - margin + o.margin_px,
                               margin - o.margin_px:scene.shape[1] - margin + o.margin_px]

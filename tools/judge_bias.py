@@ -87,7 +87,7 @@ def main() -> int:
              "Kept excess / true excess (clipped channels) when the judge is handed 1 + k (truth - 1); a perfect "
              "judge keeps min(k, 1).", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     shares: dict[str, list[list[float]]] = {label: [] for label in models}
-    for index, (name, scene) in enumerate(SceneSource(arguments.data).test_scenes(SIZE_PX, margin, arguments.count)):
+    for index, (name, scene, _) in enumerate(SceneSource(arguments.data).test_scenes(SIZE_PX, margin, arguments.count)):
         truth = scene[margin:margin + SIZE_PX, margin:margin + SIZE_PX]
         cells, totals = [], []
         for label, model in models.items():

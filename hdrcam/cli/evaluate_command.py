@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int, random_seed
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, escaped_name
 from hdrcam.io.atomic import check_outputs
 
 
@@ -30,7 +31,8 @@ def register(commands) -> None:
                                "each checkpoint's own NAME-partner.pt beside it, where there is one)")
     partners.add_argument("--no-partner", action="store_true",
                           help="score reconstruct --no-partner: each checkpoint's network alone")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default: a new evaluate-YYYYMMDD-HHMMSS in the working directory)")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -56,10 +58,21 @@ def _labelled(entries: list[str] | None) -> dict[str, Path | None]:
     return labelled
 
 
+def fresh_output_folder() -> Path:
+    """A folder name in the working directory that nothing holds yet: evaluate-YYYYMMDD-HHMMSS (local time), with
+    -2, -3, ... after it where that is taken, so a run without --out never overwrites an earlier one."""
+    stem = time.strftime("evaluate-%Y%m%d-%H%M%S")
+    folder, number = Path(stem), 1
+    while os.path.lexists(folder):  # a link by that name, even a broken one, is taken too
+        number += 1
+        folder = Path(f"{stem}-{number}")
+    return folder
+
+
 def run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from hdrcam.data.scenes import SceneSource
+    from hdrcam.data.scenes import PROCEDURAL, SceneSource
     from hdrcam.evaluate.report import OUTPUT_NAMES, summary_markdown, write_report
     from hdrcam.evaluate.scoring import check_test_crop, evaluate_models
     from hdrcam.optics.psf_file import load_psf
@@ -68,7 +81,10 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.api import resolve_partner
     from hdrcam.train.checkpoint import load_model
 
+    started = time.perf_counter()  # the time printed at the end: reading, cropping and scoring
     check_test_crop(arguments.size)
+    if arguments.out is None:
+        arguments.out = fresh_output_folder()
     check_image_size("--size", arguments.size, arguments.size, WINDOW_BYTES_PER_PIXEL + FRAME_BYTES_PER_PIXEL,
                      "use a smaller --size")
     inputs = [path for path in (*_labelled(arguments.checkpoint).values(), arguments.psf) if path is not None]
@@ -80,16 +96,22 @@ def run(arguments: argparse.Namespace) -> int:
         load_model(arguments.partner, vgg_weights=arguments.vgg_weights) if arguments.partner else "auto")
     partners = {label: resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)
                 for label, model in models.items()}  # before any scoring
-    source = SceneSource(arguments.data)
+    with tqdm(desc="read", unit="file", disable=arguments.data == PROCEDURAL) as reading:
+        source = SceneSource(arguments.data, lenient=True, progress=reading)
     count = arguments.count if source.folder is None else len(source.folder)
-    started = time.perf_counter()
+    noun = "test scenes" if source.folder is None else "photographs"
+    unscored = [] if source.folder is None else [(escaped_name(path.name), reason)
+                                                 for path, reason in source.folder.skipped]
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
-                                         partner=partners, progress=progress)
+                                         partner=partners, progress=progress, unscored=unscored)
     if not rows:
-        raise InputError(f"{arguments.data}: no photograph could be scaled so that 1.5 % of its pixels exceed 1 "
-                         "(each has a plateau at its brightest); nothing scored")
+        shown = 3  # of the reasons: one line, however many photographs
+        reasons = "; ".join(f"{name}: {reason}" for name, reason in unscored[:shown])
+        more = f"; and {len(unscored) - shown} more, named in the warnings above" if len(unscored) > shown else ""
+        raise InputError(f"{arguments.data}: none of its {len(unscored)} {noun} could be scored ({reasons}{more}); "
+                         "nothing scored")
     description = (f"Test set: {source.description} ({arguments.size}x{arguments.size} crops, exactly 1.5 % of "
                    f"pixels above 1, clipped at 2^8), captured with noise seed {arguments.seed} through "
                    f"{'the PSF ' + str(arguments.psf) if psf is not None else 'each checkpoint’s own PSF'}. "
@@ -99,8 +121,9 @@ def run(arguments: argparse.Namespace) -> int:
     if paired:
         description += (" Partner networks (reconstruct keeps what both paint unless the streaks confirm one): "
                         + ", ".join(paired) + ".")
-    write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite)
-    print(summary_markdown(rows, description), end="")
+    write_report(arguments.out, rows, examples, description, overwrite=arguments.overwrite, unscored=unscored,
+                 noun=noun)
+    print(summary_markdown(rows, description, unscored=unscored, noun=noun), end="")
     written = "metrics.csv, summary.md" + (", examples.jpg" if examples else "")
     print(f"evaluated in {time.perf_counter() - started:.1f} s; wrote {arguments.out}/{written}")
     return 0

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, failure_message
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
@@ -17,11 +17,13 @@ from hdrcam.io.tiff_image import read_tiff_rgb
 HDR_SUFFIXES = (".exr", *RADIANCE_SUFFIXES)
 
 
-def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
+def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak: bool = False) -> np.ndarray:
     """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance (by its
     magic; hdrcam.io.radiance) or float TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images
     (display images) refused. A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog
-    and Garden) is read as grey, R = G = B = Y."""
+    and Garden) is read as grey, R = G = B = Y. ``infinite_as_peak``: +Inf pixels (light beyond the format: a
+    half-float sun above 65504 is stored as Inf) are taken as the image's largest finite value, with a warning,
+    instead of refused."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -42,8 +44,14 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False) -> np.ndarray:
             raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
         _refuse_display_image(path, image)
         image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32)
-    if not np.isfinite(image).all():
-        raise InputError(f"{path}: image has NaN or Inf pixels")
+    finite = np.isfinite(image)
+    if not finite.all():
+        if not infinite_as_peak or not np.all(finite | (image == np.inf)):
+            raise InputError(f"{path}: image has NaN or {'-' if infinite_as_peak else ''}Inf pixels")
+        peak = float(image.max(where=finite, initial=0.0))
+        warnings.warn(f"{path}: {np.count_nonzero(~finite)} values are +Inf (light beyond the file format's range); "
+                      f"taken as the image's largest finite value, {peak:.6g}")
+        image = np.where(finite, image, np.float32(peak))
     if warn_negative:
         warn_negative_radiance(path, image)
     return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light
@@ -71,16 +79,30 @@ def warn_negative_radiance(path: Path, image: np.ndarray) -> None:
 def hdr_files(folder: Path) -> list[Path]:
     """The HDR files in ``folder`` (sorted; hidden files - macOS's ._NAME.exr resource forks beside copied
     photographs - and folders named like them left out, a link to a missing file kept, to be named when read; a
-    .pic only when it is a Radiance file: Apple's PICT pictures share the suffix); an error when there are none."""
+    .pic only when it is a Radiance file: Apple's PICT pictures share the suffix); an error when there are none.
+    Subfolders are not read: a warning names those that hold HDR files."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder} is not a folder of HDR images")
+    nested = sorted(p.name for p in folder.iterdir() if not p.name.startswith(".") and p.is_dir() and _holds_hdr(p))
+    if nested:
+        warnings.warn(f"{folder}: HDR files in its subfolders {', '.join(nested)} are not read (only the folder's "
+                      "own files are): give a subfolder as the folder, or move its files up")
     files = sorted(p for p in folder.iterdir()
                    if p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") and not p.is_dir()
                    and (p.suffix.lower() != ".pic" or not p.is_file() or is_radiance_file(p)))  # .pic: also PICT
     if not files:
         raise InputError(f"{folder} holds no .exr or .hdr files")
     return files
+
+
+def _holds_hdr(folder: Path) -> bool:
+    """Whether ``folder`` itself (not its subfolders) holds a file with an HDR suffix; False where it cannot be
+    listed."""
+    try:
+        return any(p.suffix.lower() in HDR_SUFFIXES and not p.name.startswith(".") for p in folder.iterdir())
+    except OSError:
+        return False
 
 
 SAFE_PEAK = 2.0 ** 64  # far above any photograph's radiance, far below float32's 3.4e38
@@ -95,11 +117,36 @@ def within_safe_range(image: np.ndarray) -> np.ndarray:
 
 
 class HdrFolder:
-    """The images of a folder, read once and kept in memory (float32)."""
+    """The images of a folder, read once and kept in memory (float32). ``lenient`` (evaluation): a file that
+    cannot be read is left out with a warning naming it and why, and kept in ``skipped`` as (path, reason), and
+    +Inf pixels are taken as the image's largest finite value (read_hdr_image); an error only when no file can
+    be read. Otherwise (training) either is an error. ``progress``: a tqdm-like bar, its total raised by the
+    number of files, each named as it is read (a folder of large photographs takes minutes)."""
 
-    def __init__(self, folder: Path):
-        self.files = hdr_files(folder)
-        self.images = [within_safe_range(read_hdr_image(path)) for path in self.files]
+    def __init__(self, folder: Path, *, lenient: bool = False, progress=None):
+        self.files, self.images, self.skipped = [], [], []
+        paths = hdr_files(folder)
+        if progress is not None:
+            progress.total = (progress.total or 0) + len(paths)
+        for path in paths:
+            if progress is not None:
+                progress.set_postfix_str(path.name)
+            try:
+                image = read_hdr_image(path, infinite_as_peak=lenient)
+            except (InputError, OSError) as error:
+                if not lenient:
+                    raise
+                message = failure_message(error)
+                reason = message.removeprefix(f"{path}: ")
+                warnings.warn(f"{path}: not evaluated - {reason}")
+                self.skipped.append((path, reason))
+            else:
+                self.files.append(path)
+                self.images.append(within_safe_range(image))
+            if progress is not None:
+                progress.update()
+        if not self.files:
+            raise InputError(f"{folder}: none of its {len(self.skipped)} HDR files could be read; nothing to evaluate")
 
     def __len__(self) -> int:
         return len(self.images)

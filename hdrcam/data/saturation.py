@@ -21,14 +21,19 @@ def clipped_fraction(radiance: np.ndarray) -> float:
     return float(np.mean(np.max(radiance, axis=-1) > 1.0))
 
 
-def fraction_shortfall(reached: float, asked: float, pixels: int) -> str | None:
+def fraction_shortfall(reached: float, asked: float, pixels: int, lit: int | None = None) -> str | None:
     """Why an image of ``pixels`` pixels scaled to leave ``asked`` of them above 1 left ``reached`` instead
-    (outside half to twice the asked fraction: fewer pixels than one would make, or a plateau at its
+    (outside half to twice the asked fraction: fewer pixels than one would make, fewer pixels holding light
+    than asked - ``lit``, where given, is the count of pixels above 0 in any channel - or a plateau at its
     brightest), or None when it came close enough."""
     if asked / 2 <= reached <= 2 * asked:
         return None
-    why = (f"{100 * asked:g} % of {pixels} pixels is less than one" if asked * pixels < 1 else
-           "a plateau at its brightest - saturated at source, or uniform - or about as few lit pixels as asked")
+    if asked * pixels < 1:
+        why = f"{100 * asked:g} % of {pixels} pixels is less than one"
+    elif lit is not None and lit < asked * pixels:
+        why = f"too few lit pixels: only {lit} hold any light ({100 * lit / pixels:.3g} %) - a dark scene"
+    else:
+        why = "a plateau at its brightest - saturated at source, or uniform - or about as few lit pixels as asked"
     return f"{100 * reached:.3g} % of its pixels exceed 1, not the {100 * asked:g} % asked ({why})"
 
 

@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import math
 import warnings
+import zlib
 
 from pathlib import Path
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
@@ -26,13 +28,28 @@ from hdrcam.data.hdr_folder import HdrFolder
 from hdrcam.data.night_scene import night_scene
 from hdrcam.data.saturation import (HIGHLIGHT_PEAK, TEST_CLIPPED_FRACTION, TRAIN_CLIPPED_RANGE, clipped_fraction,
                                     fraction_shortfall, scale_to_clipped_fraction)
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, escaped_name
 
 PROCEDURAL = "procedural"
 PROCEDURAL_CANVAS_PX = 256  # a night scene is drawn at this size and cropped
 TEST_SEED_BASE = 1_000_000  # test scenes never share seeds with training draws
 TEST_CONTEXT_PX = 128  # of a test scene's own content around its scored centre (the A7 PSFs' margin is 127)
 TRAINING_DRAWS = 16  # crops drawn in a row before a training scene without light is an error
+
+
+class TestScene(NamedTuple):
+    """A test scene: its name, H x W x 3 float32 radiance (scaled, or unscaled where it cannot be) and its own seed
+    (of its crop and its capture's noise): its index among procedural scenes, the CRC-32 of a photograph's file
+    name (so a photograph's score does not depend on which other files share its folder)."""
+    name: str
+    radiance: np.ndarray
+    seed: int
+
+
+def name_seed(name: str) -> int:
+    """A file name's CRC-32 (0 to 2^32 - 1) over its bytes (UTF-8; a name that is not valid UTF-8, its own bytes):
+    the same in every run and on every platform, unlike Python's salted hash()."""
+    return zlib.crc32(name.encode("utf-8", "surrogateescape"))
 
 
 def parse_mixture(data: str) -> list[tuple[str, float]]:
@@ -86,10 +103,13 @@ class SceneSource:
     """Training draws from a mixture of ``procedural`` and folders of .exr/.hdr files (module docstring);
     a fixed test set from the first of them."""
 
-    def __init__(self, data: str | Path):
+    def __init__(self, data: str | Path, *, lenient: bool = False, progress=None):
+        """``lenient`` (evaluation): unreadable photographs are left out with a warning; ``progress``: a tqdm-like
+        bar of the files read (HdrFolder)."""
         self.description = str(data)
         self.mixture = parse_mixture(str(data))
-        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source)) for source, _ in self.mixture]
+        self.folders = [None if source == PROCEDURAL else HdrFolder(Path(source), lenient=lenient, progress=progress)
+                        for source, _ in self.mixture]
         weights = np.array([weight for _, weight in self.mixture])
         self.probabilities = weights / weights.sum()
         self.folder = self.folders[0]
@@ -144,36 +164,39 @@ class SceneSource:
                          "so 1-3 % of their pixels exceed white (too little light, or a plateau at their brightest: "
                          "clipped at source); remove such photographs from --data")
 
-    def test_scenes(self, size_px: int, margin_px: int, count: int) -> list[tuple[str, np.ndarray]]:
+    def test_scenes(self, size_px: int, margin_px: int, count: int) -> Iterator[TestScene]:
         """``count`` fixed scenes (procedural) or one per file (folder) of the first source, centre exactly 1.5 %
         above 1 and holding a highlight, the same whatever ``margin_px`` (hdrcam.data.crops.scored_crop); each
-        named (night-NNN, or the file's stem - its name where two files share a stem). A photograph without
+        named (night-NNN, or the file's stem - its name where another file of the folder, read or not, shares the
+        stem or is named so: Bonita.exr beside Bonita.exr.hdr) and seeded (TestScene): a
+        photograph's crop by its file name, not its place in the folder. A photograph without
         light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
-        mirrored to fill it, with a warning."""
-        scenes = []
+        mirrored to fill it, with a warning. Each is cropped as it is asked for (a crop of a large panorama takes
+        seconds)."""
         if self.folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px + 2 * TEST_CONTEXT_PX)
             for index in range(count):
                 rng = np.random.default_rng(TEST_SEED_BASE + index)
                 scene = night_scene(canvas, canvas, seed=int(rng.integers(2 ** 31)))
-                scenes.append((f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
-                                                                       rng), TEST_CLIPPED_FRACTION, margin_px)))
+                yield TestScene(f"night-{index:03d}", _scaled(scored_crop(scene, size_px, margin_px, TEST_CONTEXT_PX,
+                                                                        rng), TEST_CLIPPED_FRACTION, margin_px), index)
         else:
-            stems = [path.stem for path in self.folder.files]
-            for index, path in enumerate(self.folder.files):
-                rng = np.random.default_rng(TEST_SEED_BASE + index)
-                image = self.folder.images[index]
+            listed = [*self.folder.files, *(path for path, _ in self.folder.skipped)]
+            stems, names = [path.stem for path in listed], {path.name for path in listed}
+            for path, image in zip(self.folder.files, self.folder.images):
+                seed = name_seed(path.name)
+                rng = np.random.default_rng(TEST_SEED_BASE + seed)
                 if min(image.shape[:2]) < size_px:
                     warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
                                   "test crop: mirrored to fill it, and the mirrored copies are scored too")
                 crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
-                name = path.stem if stems.count(path.stem) == 1 else path.name  # sun.exr beside sun.hdr
+                unique = stems.count(path.stem) == 1 and path.stem not in names  # Bonita.exr.hdr's stem is
+                name = escaped_name(path.stem if unique else path.name)  # Bonita.exr's name
                 try:
-                    scenes.append((name, _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)))
-                except InputError:  # no light to scale: kept unscaled in its place (evaluate leaves it out, as
-                    scenes.append((name, np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32)))  # it does any
-                    # photograph it cannot scale), so every later file keeps its index and noise seed
-        return scenes
+                    scaled = _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)
+                except InputError:  # no light to scale: kept unscaled (evaluate leaves it out, as it does any
+                    scaled = np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32)  # photograph it cannot scale,
+                yield TestScene(name, scaled, seed)  # and names it)
 
 
 def _scaled(crop: np.ndarray, fraction: float, margin_px: int) -> np.ndarray:

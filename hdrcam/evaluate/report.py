@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hdrcam.errors import escaped_name
 from hdrcam.evaluate.metrics import HARM_DB
 from hdrcam.evaluate.scoring import Example, ScoredImage
 from hdrcam.io.atomic import atomic_paths, write_text_atomic
@@ -52,12 +53,15 @@ def gains_over(rows: list[ScoredImage], method: str, reference: str = "ldr") -> 
     return np.array([gain for _, gain in paired_gains(rows, method, reference)])
 
 
-def summary_markdown(rows: list[ScoredImage], description: str, reference: str = "ldr") -> str:
+def summary_markdown(rows: list[ScoredImage], description: str, reference: str = "ldr",
+                     unscored: list[tuple[str, str]] = (), noun: str = "test images") -> str:
     """The means table, with each method's worst image against ``reference`` and how many images it leaves more
-    than HARM_DB below it (the generalisation issue's two bars: the mean gain, and no image below -HARM_DB)."""
+    than HARM_DB below it (the generalisation issue's two bars: the mean gain, and no image below -HARM_DB); how
+    many of the test set's ``noun`` were scored, and the others (``unscored``: name, reason) with the reason."""
     means = method_means(rows)
     images = list(dict.fromkeys(row.image for row in rows))
-    lines = [f"# Evaluation\n\n{description}\n\n{len(images)} test images. Means over images; "
+    lines = [f"# Evaluation\n\n{description}\n\n{len(images)} of {len(images) + len(unscored)} {noun} scored. "
+             "Means over images; "
              f"'vs {reference}' is the mean linear-PSNR gain over the row '{reference}' on the images both were "
              f"scored on, 'worst' the least gain of any image, 'below' the count of images more than {HARM_DB} dB "
              f"below '{reference}'.\n",
@@ -77,6 +81,9 @@ def summary_markdown(rows: list[ScoredImage], description: str, reference: str =
                      f"{value['pu21_psnr']:.2f} | {value['psnr_mu']:.2f} |")
     if worst_images:
         lines.append(f"\nWorst image per method: {'; '.join(worst_images)}.")
+    if unscored:
+        lines.append(f"\nNot scored ({len(unscored)}):\n")
+        lines += [f"- {name}: {reason}" for name, reason in unscored]
     return "\n".join(lines) + "\n"
 
 
@@ -99,11 +106,13 @@ def examples_figure(examples: list[Example], tile_px: int = 256) -> np.ndarray:
 
 
 def write_report(out: Path, rows: list[ScoredImage], examples: list[Example], description: str, *,
-                 overwrite: bool = False) -> None:
-    """metrics.csv, summary.md and (with examples) examples.jpg in ``out``, published together or not at all."""
+                 overwrite: bool = False, unscored: list[tuple[str, str]] = (), noun: str = "test images") -> None:
+    """metrics.csv, summary.md and (with examples) examples.jpg in ``out``, published together or not at all;
+    ``unscored``, ``noun``: :func:`summary_markdown`'s."""
     paths = [out / "metrics.csv", out / "summary.md"] + ([out / "examples.jpg"] if examples else [])
     with atomic_paths(paths, overwrite=overwrite) as temporaries:
         write_text_atomic(temporaries[0], metrics_csv(rows), overwrite=True)  # an error names the file
-        write_text_atomic(temporaries[1], summary_markdown(rows, description), overwrite=True)
+        summary = summary_markdown(rows, description, unscored=unscored, noun=noun)
+        write_text_atomic(temporaries[1], escaped_name(summary), overwrite=True)  # a folder's name, say
         if examples:
             write_jpeg(temporaries[2], examples_figure(examples), overwrite=True)

@@ -63,11 +63,13 @@ def check_test_crop(size_px: int) -> None:
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
-                    partner="auto", progress=None) -> tuple[list[ScoredImage], list[Example]]:
+                    partner="auto", progress=None, unscored: list[tuple[str, str]] | None = None
+                    ) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
     ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
     model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
-    missing: none)."""
+    missing: none). A scene the protocol cannot scale is left out with a warning, and appended to ``unscored``
+    (where given) as (name, reason)."""
     partners = {label: resolve_partner(model, partner.get(label) if isinstance(partner, dict) else partner)
                 for label, model in models.items()}
     capture_psfs = {label: model.psf if psf is None else psf for label, model in models.items()}
@@ -76,12 +78,15 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     margin = max(capture.margin_px for capture in captures.values())
     first = next(iter(models))
     rows, shown = [], []
-    for index, (name, scene) in enumerate(source.test_scenes(size_px, margin, count)):
+    for index, (name, scene, scene_seed) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
-        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px)
+        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px,
+                                       lit=int(np.count_nonzero(truth.max(axis=-1) > 0.0)))
         if shortfall:
             warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
+            if unscored is not None:
+                unscored.append((name, f"scaled as the protocol asks, {shortfall}"))
             if progress:
                 progress.update()
             continue
@@ -92,7 +97,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
             crop = margin - capture.margin_px
             local = radiance[..., crop:radiance.shape[-2] - crop, crop:radiance.shape[-1] - crop]
             with torch.no_grad():
-                ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + index))
+                ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + scene_seed))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
             result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check,
                                  partner=partners[label])

@@ -64,12 +64,12 @@ def test_night_scenes_are_seeded_and_reach_two_to_the_eight():
 
 def test_procedural_source_scales_its_test_scenes_to_one_and_a_half_percent():
     source = SceneSource("procedural")
-    scenes = source.test_scenes(64, 8, 3)
-    assert [name for name, _ in scenes] == ["night-000", "night-001", "night-002"]
-    for _, scene in scenes:
+    scenes = list(source.test_scenes(64, 8, 3))
+    assert [scene.name for scene in scenes] == ["night-000", "night-001", "night-002"]
+    for _, scene, _ in scenes:
         assert scene.shape == (80, 80, 3)
         assert clipped_fraction(scene[8:-8, 8:-8]) == pytest.approx(0.015, abs=1.5 / 64 ** 2)
-    assert np.array_equal(scenes[0][1], source.test_scenes(64, 8, 1)[0][1])  # fixed test set
+    assert np.array_equal(scenes[0].radiance, next(source.test_scenes(64, 8, 1)).radiance)  # fixed test set
     training = source.training_scene(64, 8, np.random.default_rng(0))
     assert 0.01 - 1 / 64 ** 2 <= clipped_fraction(training[8:-8, 8:-8]) <= 0.03 + 1 / 64 ** 2
 
@@ -78,7 +78,7 @@ def test_procedural_source_scales_its_test_scenes_to_one_and_a_half_percent():
 def test_hdr_folder_reads_the_shared_openexr_images():
     folder = HdrFolder(SHARED_HDR)
     assert len(folder) >= 5 and all(image.min() >= 0.0 and image.ndim == 3 for image in folder.images)
-    scenes = SceneSource(SHARED_HDR).test_scenes(128, 16, 0)
+    scenes = list(SceneSource(SHARED_HDR).test_scenes(128, 16, 0))
     assert len(scenes) == len(folder)
 
 
@@ -150,7 +150,7 @@ def test_a_mixture_takes_procedural_scenes_and_its_test_set_from_the_first_sourc
     _write_exr(tmp_path / "a.exr", np.full((48, 48, 3), 2.0, np.float32) * np.linspace(0.01, 1, 48)[:, None, None])
     source = SceneSource(f"procedural:1,{tmp_path}:1")
     assert source.folder is None and len(source.folders) == 2
-    assert [name for name, _ in source.test_scenes(32, 0, 2)] == ["night-000", "night-001"]
+    assert [scene.name for scene in source.test_scenes(32, 0, 2)] == ["night-000", "night-001"]
 
 
 def test_white_balance_jitter_keeps_green_and_stays_within_its_range():
@@ -193,8 +193,11 @@ def test_test_scenes_of_files_sharing_a_stem_keep_distinct_names(tmp_path):
     _write_exr(tmp_path / "sun.exr", image)
     cv2.imwrite(str(tmp_path / "sun.hdr"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     _write_exr(tmp_path / "moon.exr", image)
-    names = [name for name, _ in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
+    names = [scene.name for scene in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
     assert names == ["moon", "sun.exr", "sun.hdr"]
+    cv2.imwrite(str(tmp_path / "sun.exr.hdr"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))  # its stem: sun.exr's name
+    names = [scene.name for scene in SceneSource(str(tmp_path)).test_scenes(32, 0, 0)]
+    assert names == ["moon", "sun.exr", "sun.exr.hdr", "sun.hdr"]
 
 
 def test_a_training_photograph_without_light_is_refused_by_name_before_training(tmp_path):
@@ -273,9 +276,9 @@ def test_a_test_scenes_scored_centre_holds_a_highlight_and_does_not_depend_on_th
     size = 96
     centres = {}
     for margin in (8, 31, 127):
-        scenes = source.test_scenes(size, margin, 4)
-        centres[margin] = [scene[margin:margin + size, margin:margin + size] for _, scene in scenes]
-        for (name, scene), centre in zip(scenes, centres[margin]):
+        scenes = list(source.test_scenes(size, margin, 4))
+        centres[margin] = [scene.radiance[margin:margin + size, margin:margin + size] for scene in scenes]
+        for (name, scene, _), centre in zip(scenes, centres[margin]):
             assert scene.shape == (size + 2 * margin, size + 2 * margin, 3)
             if data == "lamps":  # a lamp in the scored centre: 1000 times the texture
                 assert centre.max() > 100 * np.median(centre), (name, margin)
@@ -289,15 +292,15 @@ def test_a_mixture_led_by_procedural_tests_on_procedural_scenes_only(tmp_path):
     scored as night-003) and shifted every scene's random stream."""
     mixture = SceneSource(f"procedural:0.5,{_lamps(tmp_path)}:0.5").test_scenes(64, 8, 4)
     alone = SceneSource("procedural").test_scenes(64, 8, 4)
-    assert [name for name, _ in mixture] == [name for name, _ in alone]
-    for (_, first), (_, second) in zip(mixture, alone):
-        np.testing.assert_array_equal(first, second)
+    assert [scene.name for scene in mixture] == [scene.name for scene in alone]
+    for first, second in zip(mixture, alone):
+        np.testing.assert_array_equal(first.radiance, second.radiance)
 
 
 def test_a_photograph_smaller_than_the_test_crop_is_warned_about(tmp_path):
     _lamps(tmp_path, height=80, width=120)
     with pytest.warns(UserWarning, match=r"p0.exr: 120 x 80 px, smaller than the 96 px test crop: mirrored"):
-        SceneSource(str(tmp_path)).test_scenes(96, 8, 0)
+        list(SceneSource(str(tmp_path)).test_scenes(96, 8, 0))
 
 
 def test_a_point_of_light_on_black_is_refused_with_how_many_pixels_hold_light():
