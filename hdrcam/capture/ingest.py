@@ -76,9 +76,12 @@ BUSY_EXPOSURES = 2.0  # the exposure and the long-exposure noise reduction's dar
 
 def _too_late(previous: RawMetadata, frame: RawMetadata, max_gap_s: float) -> bool:
     """True when ``frame`` (EXIF times: when each exposure began) began more than ``max_gap_s`` after the
-    camera could have been ready again: BUSY_EXPOSURES times the previous exposure after it began."""
-    if previous.timestamp is None or frame.timestamp is None:
+    camera could have been ready again: BUSY_EXPOSURES times the previous exposure after it began; or when one
+    of the two records a time and the other none (nothing ties a frame without a time to a timed bracket)."""
+    if previous.timestamp is None and frame.timestamp is None:
         return False
+    if previous.timestamp is None or frame.timestamp is None:  # a frame without a time beside timed ones: apart
+        return True
     return (frame.timestamp - previous.timestamp).total_seconds() > max_gap_s + BUSY_EXPOSURES * previous.exposure_s
 
 

@@ -494,10 +494,14 @@ class SonyA7Camera:
 
     def _pause_for_events(self):
         """One poll interval between property reads: spent waiting on the interrupt pipe, which an event ends
-        early (a body without one: asleep). Returns the event, if one came."""
+        early; asleep for what is left of it when the pipe returned sooner without one (a body without the pipe,
+        or an I/O error on it: back-to-back property reads otherwise). Returns the event, if one came."""
+        started = self.clock.monotonic()
         event = self.session.transport.read_event(int(STEP_POLL_INTERVAL_S * 1000))
-        if event is None and self.session.transport.interrupt_in is None:
-            self.clock.sleep(STEP_POLL_INTERVAL_S)
+        if event is None:
+            rest = STEP_POLL_INTERVAL_S - (self.clock.monotonic() - started)
+            if rest > 0:
+                self.clock.sleep(rest)
         return event
 
     def _drain_stale_events(self) -> None:

@@ -33,6 +33,8 @@ NEAREST_CONTRAST = 3.0  # this much: the noise peak of a flat, unclipped area (a
 # DN) stands far above the window's mean but hardly above its own neighbours (a ratio of 1 to 1.3); a clipped
 # sensor's pile-up stands far above them, even when a per-column offset after the clip spreads it over a few DN
 # (values on a coarser grid - 12-bit data in a 14-bit file - leave neighbours empty: the nearest occupied count)
+ONE_SENSOR_SLACK = 0.05  # of the black-to-clip range: one sensor's positions clip within it of one another (the
+# A7R III's cRAW: 11 DN apart, scattered 256 DN above); a position brighter than that is not clipped at that level
 MIN_SIGNAL = 0.01  # of the black-to-white range: the largest sample of data whose own white is far below the
 # metadata's (10-bit data in 16-bit samples reaches 1.6 %); less is a dark frame's noise
 BELOW_WINDOW = 0.05  # of the black-to-white range: the neighbourhood the pile-up is compared with
@@ -54,7 +56,8 @@ def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_l
 def _shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, histograms: dict, black_dn: float,
                     white_level_dn: float) -> np.ndarray:
     """``levels_dn`` (2 x 2, absolute DN) with each position left at the white level given the pile-up of the
-    four positions' samples together (their top-part ``histograms`` summed: no second pass over the data), where
+    four positions' samples together within BELOW_WINDOW of their brightest (their top-part ``histograms`` summed:
+    no second pass over the data; a brightly lit wall lower down holds more samples than a lamp's few), where
     its own brightest samples reach it (within PILE_WIDTH_DN) and none goes above it. A small light clips a few
     samples of each position - a 3 x 3 px lamp two or four - fewer than MIN_PILE_SAMPLES: on a body clipping at
     15 000 DN under a white level of 16 383, such a lamp read 0.91 of white and "no clipped pixels"; one sensor's
@@ -67,7 +70,14 @@ def _shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, histograms: dic
     shared = np.zeros(max(start - low + counts.size for start, counts in histograms.values()), np.int64)
     for start, counts in histograms.values():
         shared[start - low:start - low + counts.size] += counts
-    level = _pile_in(shared, low, white_level_dn - black_dn, white_level_dn, at_ceiling_only=False)
+    occupied = np.flatnonzero(shared)
+    if occupied.size == 0:
+        return levels_dn
+    top = int(occupied[-1])  # the brightest sample: a clipped light's few samples pile up at it or, scattered
+    window = max(int(BELOW_WINDOW * (white_level_dn - black_dn)), 8)  # above by lossy compression, just below;
+    start = max(0, top - window)  # a brightly lit wall further down holds more samples than a lamp's few
+    level = _pile_in(shared[start:top + 1], low + start, white_level_dn - black_dn, white_level_dn,
+                     at_ceiling_only=False)
     if level is None or level >= white_level_dn:
         return levels_dn
     brightest = np.array([[bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
@@ -79,17 +89,19 @@ def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_lev
                      longest_bayer_dn: np.ndarray) -> np.ndarray:
     """A bracket's clip levels ``levels_dn`` (2 x 2, absolute DN) with each position that found no pile-up (at
     ``white_level_dn``) set to the highest level found below the top part of the range, where some position found
-    one there and that position's samples in the longest frame ``longest_bayer_dn`` stay at or below it (module
-    docstring). A DNG with WhiteLevel 65535, or none (the DNG spec's default, 2^BitsPerSample - 1), over 14-bit
-    data: with only green clipped, red and blue stayed at 65535, the largest level set the full well, and every
+    one there and that position's samples in the longest frame ``longest_bayer_dn`` stay within ONE_SENSOR_SLACK
+    of it (module docstring: a position clipping a few DN above the others' pile-up, too few samples for its own,
+    is the same sensor's clip; one whose samples go far above it is not). A DNG with WhiteLevel 65535, or none
+    (the DNG spec's default, 2^BitsPerSample - 1), over 14-bit data: with only green clipped, red and blue stayed
+    at 65535, the largest level set the full well, and every
     radiance came out 4x too dark (12-bit data: 16x)."""
     far_below = _below_top_part(levels_dn, black_tile_dn, white_level_dn)
     if not far_below.any():
         return levels_dn
     sensor_white = levels_dn[far_below].max()
     brightest = np.array([[longest_bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
-    return np.where((levels_dn >= white_level_dn) & (brightest <= sensor_white), sensor_white, levels_dn
-                    ).astype(np.float32)
+    within = brightest <= sensor_white + ONE_SENSOR_SLACK * (sensor_white - float(np.mean(black_tile_dn)))
+    return np.where((levels_dn >= white_level_dn) & within, sensor_white, levels_dn).astype(np.float32)
 
 
 def channel_clip_level(samples_dn: np.ndarray, black_dn: float, white_level_dn: float) -> float:

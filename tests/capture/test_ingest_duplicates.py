@@ -127,3 +127,19 @@ def test_frames_without_a_capture_time_are_grouped_and_said_to_be(tmp_path):
     assert [len(bracket) for bracket in result.brackets] == [3]
     assert all(frame.timestamp is None for frame in result.brackets[0])
     assert any("no capture time recorded in 3 frame(s)" in line for line in result.report)
+
+
+def test_a_frame_without_a_capture_time_does_not_join_a_timed_bracket(tmp_path):
+    """A frame with no time beside three timed ones of the same settings joined their bracket (nothing said it was
+    shot apart); it stands alone and is reported."""
+    import numpy as np
+
+    from tests.io.realistic_dng import sensor_dn, write_dng
+
+    scene = 2.0 ** (6 + 8 * np.mgrid[0:32, 0:48][1] / 47)
+    for k, exposure in enumerate((0.001, 0.004, 0.016, 0.064)):
+        write_dng(tmp_path / f"f{k}.dng", sensor_dn(scene, exposure, np.random.default_rng(k)), exposure_s=exposure,
+                  datetime=None if k == 3 else f"2026:11:24 12:00:0{k}")
+    result = ingest_folder(tmp_path)
+    assert [[frame.path.name for frame in bracket] for bracket in result.brackets] == [["f0.dng", "f1.dng", "f2.dng"]]
+    assert any(line.startswith("not in a bracket: f3.dng") for line in result.report)

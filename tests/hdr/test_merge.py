@@ -511,6 +511,28 @@ def test_clip_levels_on_both_sides_of_the_searched_range_are_warned_about():
     assert merged.clip_level_tile_dn.tolist() == [[40000, 16383], [16383, 16383]]
 
 
+def test_a_position_clipping_a_few_dn_above_the_others_shares_their_sensor_white():
+    """14-bit data under the DNG default white 65535: green and blue pile up at 16372, red's ADC clips at 16383
+    with 4 clipped samples in the longest frame (too few for its own pile-up). Red was left at 65535 because its
+    brightest sample lay above 16372 by 11 DN: the full well 65535, every radiance 4x too dark."""
+    import dataclasses
+
+    from hdrcam.io.raw import RawFrame
+
+    meta = read_bracket([Path(__file__).parent / "data" / "bracket-96x64"])[0].metadata
+    meta = dataclasses.replace(meta, black_level_dn=(512.0,) * 4, white_level_dn=65535.0)
+    radiance = np.geomspace(0.02, 2.0, 64 * 96).reshape(64, 96) * np.tile([[0.5, 1.0], [1.0, 0.3]], (32, 48))
+    radiance[0, 0:8:2] = 50.0  # four red samples of a small red light
+    clip = np.tile([[16383, 16372], [16372, 16372]], (32, 48))
+    frames = [RawFrame(dataclasses.replace(meta, exposure_s=exposure), np.minimum(
+        np.round(radiance * exposure * (16383 - 512) + 512), clip).astype(np.uint16))
+        for exposure in (1 / 16, 1 / 4, 1.0)]
+    merged = merge_bayer(frames, PROFILE.camera, estimate_ratios=False)
+    assert merged.clip_level_tile_dn.tolist() == [[16372, 16372], [16372, 16372]]
+    valid = (radiance > 0.05) & (radiance * (16383 - 512) < 16383 - 512 - 300)
+    np.testing.assert_allclose(np.median(merged.rate[valid] / radiance[valid]), 1.0, rtol=5e-3)
+
+
 def test_a_false_pile_up_in_one_position_leaves_the_others_at_the_white_level():
     """A stuck readout of 40 red samples at 3000 DN in every frame of a 14-bit bracket (white 16383) reads as red's
     pile-up in the shortest frame, where red stays below it. Green and blue, whose samples go far above 3000,
