@@ -14,6 +14,7 @@ spreads into it through the PSF, as it does on a sensor; targets are the centre 
 from __future__ import annotations
 
 import math
+import unicodedata
 import warnings
 import zlib
 
@@ -47,9 +48,13 @@ class TestScene(NamedTuple):
 
 
 def name_seed(name: str) -> int:
-    """A file name's CRC-32 (0 to 2^32 - 1) over its bytes (UTF-8; a name that is not valid UTF-8, its own bytes):
-    the same in every run and on every platform, unlike Python's salted hash()."""
-    return zlib.crc32(name.encode("utf-8", "surrogateescape"))
+    """A file name's CRC-32 (0 to 2^32 - 1) over its bytes (UTF-8 of its NFC form: macOS stores "Café" decomposed,
+    Linux composed; a name that is not valid UTF-8, its own bytes): the same in every run and on every platform,
+    unlike Python's salted hash()."""
+    try:
+        return zlib.crc32(unicodedata.normalize("NFC", name).encode("utf-8"))
+    except UnicodeEncodeError:  # lone surrogates: the bytes of a name that is not UTF-8
+        return zlib.crc32(name.encode("utf-8", "surrogateescape"))
 
 
 def parse_mixture(data: str) -> list[tuple[str, float]]:

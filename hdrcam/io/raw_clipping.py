@@ -50,19 +50,19 @@ def measure_clip_levels(bayer_dn: np.ndarray, black_tile_dn: np.ndarray, white_l
             samples, black = bayer_dn[row::2, column::2], float(black_tile_dn[row, column])
             histograms[row, column] = _top_histogram(samples, black, white_level_dn)
             levels[row, column] = _clip_level(samples, black, white_level_dn, histograms[row, column])
-    return _shared_pile_up(levels, bayer_dn, histograms, float(np.mean(black_tile_dn)), white_level_dn)
+    return _shared_pile_up(levels, histograms, float(np.mean(black_tile_dn)), white_level_dn)
 
 
-def _shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, histograms: dict, black_dn: float,
-                    white_level_dn: float) -> np.ndarray:
-    """``levels_dn`` (2 x 2, absolute DN) with each position left at the white level given the pile-up of the
-    four positions' samples together within BELOW_WINDOW of their brightest (their top-part ``histograms`` summed:
-    no second pass over the data; a brightly lit wall lower down holds more samples than a lamp's few), where
-    its own brightest samples reach it (within PILE_WIDTH_DN) and none goes above it. A small light clips a few
-    samples of each position - a 3 x 3 px lamp two or four - fewer than MIN_PILE_SAMPLES: on a body clipping at
-    15 000 DN under a white level of 16 383, such a lamp read 0.91 of white and "no clipped pixels"; one sensor's
-    ADC clips all positions at one level (module docstring). Only the top part is searched: a stuck readout far
-    below white is no sensor's clip level."""
+def _shared_pile_up(levels_dn: np.ndarray, histograms: dict, black_dn: float, white_level_dn: float) -> np.ndarray:
+    """``levels_dn`` (2 x 2, absolute DN) with each position left at the white level given the highest pile-up of
+    the four positions' samples together (their top-part ``histograms`` summed: no second pass over the data),
+    looked for in windows of BELOW_WINDOW stepped down from the brightest sample (a brightly lit wall lower down
+    holds more samples than a lamp's few, and a hot pixel may lie above the pile), where the position holds
+    samples at it (within PILE_WIDTH_DN) and fewer than MIN_PILE_SAMPLES above it (hot pixels, a lossy codec's
+    scatter). A small light clips a few samples of each position - a 3 x 3 px lamp two or four - fewer than
+    MIN_PILE_SAMPLES: on a body clipping at 15 000 DN under a white level of 16 383, such a lamp read 0.91 of white
+    and "no clipped pixels"; one sensor's ADC clips all positions at one level (module docstring). Only the top
+    part is searched: a stuck readout far below white is no sensor's clip level."""
     unfound = levels_dn >= white_level_dn
     if not unfound.any():
         return levels_dn
@@ -73,16 +73,29 @@ def _shared_pile_up(levels_dn: np.ndarray, bayer_dn: np.ndarray, histograms: dic
     occupied = np.flatnonzero(shared)
     if occupied.size == 0:
         return levels_dn
-    top = int(occupied[-1])  # the brightest sample: a clipped light's few samples pile up at it or, scattered
-    window = max(int(BELOW_WINDOW * (white_level_dn - black_dn)), 8)  # above by lossy compression, just below;
-    start = max(0, top - window)  # a brightly lit wall further down holds more samples than a lamp's few
-    level = _pile_in(shared[start:top + 1], low + start, white_level_dn - black_dn, white_level_dn,
-                     at_ceiling_only=False)
+    window = max(int(BELOW_WINDOW * (white_level_dn - black_dn)), 8)
+    top, level = int(occupied[-1]), None
+    while level is None:
+        start = max(0, top - window)
+        level = _pile_in(shared[start:top + 1], low + start, white_level_dn - black_dn, white_level_dn,
+                         at_ceiling_only=False)
+        if start == 0:
+            break
+        top -= window // 2
     if level is None or level >= white_level_dn:
         return levels_dn
-    brightest = np.array([[bayer_dn[row::2, column::2].max() for column in range(2)] for row in range(2)])
-    reaches = (brightest <= level) & (brightest >= level - PILE_WIDTH_DN)  # its own few samples clipped there
+    reaches = np.array([[_clipped_there(histograms[row, column], int(level)) for column in range(2)]
+                        for row in range(2)])
     return np.where(unfound & reaches, level, levels_dn).astype(np.float32)
+
+
+def _clipped_there(histogram: tuple[int, np.ndarray], level_dn: int) -> bool:
+    """Whether a position's top-part ``histogram`` (low, counts) holds samples within PILE_WIDTH_DN below
+    ``level_dn`` or at it, and fewer than MIN_PILE_SAMPLES above it."""
+    low, counts = histogram
+    index = level_dn - low
+    return index >= 0 and counts[max(0, index - PILE_WIDTH_DN):index + 1].sum() > 0 and \
+        counts[index + 1:].sum() < MIN_PILE_SAMPLES
 
 
 def one_sensor_white(levels_dn: np.ndarray, black_tile_dn: np.ndarray, white_level_dn: float,

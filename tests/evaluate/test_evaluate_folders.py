@@ -166,3 +166,27 @@ def test_subfolders_holding_photographs_are_named_not_read(tmp_path):
         (tmp_path / name / held).write_bytes(b"")
     with pytest.warns(UserWarning, match=r"HDR files in its subfolders day, night are not read"):
         assert [path.name for path in SceneSource(tmp_path).folder.files] == ["lamps.exr"]
+
+
+def test_infinite_light_in_a_photograph_with_other_primaries_is_read_not_skipped(tmp_path):
+    """+Inf in an EXR whose chromaticities name Display P3: the matrix to Rec. 709 ran first and turned Inf into
+    NaN and -Inf, so the photograph was skipped as "NaN or -Inf pixels". The light is replaced, then converted."""
+    from hdrcam.data.hdr_folder import read_hdr_image
+
+    pixels = _lamps(3)
+    pixels[10:16, 10:16] = np.inf
+    p3 = (0.680, 0.320, 0.265, 0.690, 0.150, 0.060, 0.3127, 0.3290)
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "chromaticities": p3}, {"RGB": pixels}).write(
+        str(tmp_path / "sun.exr"))
+    with pytest.warns(UserWarning, match=r"\+Inf"):
+        image = read_hdr_image(tmp_path / "sun.exr", infinite_as_peak=True)
+    assert np.isfinite(image).all() and image[12, 12].min() > 0
+
+
+def test_a_name_seeds_the_same_crop_whether_stored_composed_or_decomposed():
+    """macOS stores "Café.exr" decomposed (NFD), Linux composed (NFC): the same photograph got two seeds."""
+    import unicodedata
+
+    from hdrcam.data.scenes import name_seed
+
+    assert name_seed(unicodedata.normalize("NFD", "Café.exr")) == name_seed(unicodedata.normalize("NFC", "Café.exr"))

@@ -551,10 +551,13 @@ def test_a_small_lamp_on_a_body_clipping_below_its_white_level_is_clipped_in_eve
 
     radiance = np.tile(2000.0 + 30.0 * np.arange(160), (120, 1))  # DN per second above black
     radiance[40:43, 60:63] = 1e6
-    for wall in (False, True):  # a brightly lit, unclipped wall holds more samples in the top part than the lamp
-        if wall:
-            radiance[5:35, 5:75] = 90000.0  # 9000 DN: the shared histogram's mode, where its argmax was looked for
-        path = write_dng(tmp_path / "lamp.dng", sensor_dn(radiance, 0.1, np.random.default_rng(19), clip_dn=15000))
+    for wall, hot in ((False, False), (True, False), (True, True)):  # a brightly lit, unclipped wall holds more
+        if wall:  # samples in the top part than the lamp: 9000 DN, the shared histogram's mode, where its argmax was
+            radiance[5:35, 5:75] = 90000.0  # looked for; a hot pixel above the pile moved a window from the top
+        bayer = sensor_dn(radiance, 0.1, np.random.default_rng(19), clip_dn=15000)
+        if hot:
+            bayer[100, 100] = 16383
+        path = write_dng(tmp_path / "lamp.dng", bayer)
         frame = read_raw(path)
         assert frame.clip_level_tile_dn.tolist() == [[15000, 15000], [15000, 15000]]
         assert np.all(raw_relative_rgb(frame)[41, 61] == 1.0)
