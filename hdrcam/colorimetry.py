@@ -27,6 +27,13 @@ def camera_to_srgb_matrix(xyz_to_camera: np.ndarray, as_shot_neutral: np.ndarray
     return matrix * (as_shot_neutral[1] / white)[:, None] if np.all(white > 0) else matrix
 
 
+def in_rec709(rgb: np.ndarray, chromaticities) -> np.ndarray:
+    """H x W x 3 float32 linear RGB of these ``chromaticities`` in linear Rec. 709 / D65 (:func:`to_rec709_matrix`);
+    ``rgb`` itself when no conversion applies."""
+    matrix = to_rec709_matrix(chromaticities)
+    return rgb if matrix is None else rgb @ matrix.T.astype(np.float32)
+
+
 def to_rec709_matrix(chromaticities) -> np.ndarray | None:
     """3 x 3 matrix from linear RGB of these chromaticities (red x, y, green x, y, blue x, y, white x, y) to
     linear Rec. 709 / D65, with Bradford adaptation between the white points (equal to colour-science's

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.colorimetry import to_rec709_matrix
+from hdrcam.colorimetry import in_rec709
 from hdrcam.errors import InputError, failure_message
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
@@ -28,11 +28,11 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
-    primaries = None  # an EXR's matrix to Rec. 709, applied after +Inf is dealt with (a matrix turns it into NaN)
+    primaries = None  # an EXR's, converted to Rec. 709 after +Inf is dealt with (a matrix turns it into NaN)
     if path.suffix.lower() == ".exr" or is_exr_file(path):
         exr = read_exr(path, to_rec709=False)
         if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels):
-            image, primaries = exr.rgb(), to_rec709_matrix(exr.attributes.get("chromaticities"))
+            image, primaries = exr.rgb(), exr.attributes.get("chromaticities")
         else:
             image = np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
     elif path.suffix.lower() in (".tif", ".tiff"):
@@ -57,7 +57,7 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
                       f"taken as the image's largest finite value, {peak:.6g}")
         image = np.where(finite, image, np.float32(peak))
     if primaries is not None:
-        image = image @ primaries.T.astype(np.float32)
+        image = in_rec709(image, primaries)
     if warn_negative:
         warn_negative_radiance(path, image)
     return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from hdrcam.colorimetry import REC709_CHROMATICITIES, normalised_primary_matrix, to_rec709_matrix
+from hdrcam.colorimetry import REC709_CHROMATICITIES, in_rec709, normalised_primary_matrix, to_rec709_matrix
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
@@ -141,9 +141,8 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
     attributes = _user_attributes(header)
-    matrix = to_rec709_matrix(header.get("chromaticities")) if to_rec709 else None
-    if matrix is not None and {"R", "G", "B"} <= channels.keys():
-        rgb = np.stack([channels[name] for name in "RGB"], axis=-1) @ matrix.T.astype(np.float32)
+    if to_rec709 and to_rec709_matrix(header.get("chromaticities")) is not None and {"R", "G", "B"} <= channels.keys():
+        rgb = in_rec709(np.stack([channels[name] for name in "RGB"], axis=-1), header["chromaticities"])
         channels.update(R=rgb[..., 0].copy(), G=rgb[..., 1].copy(), B=rgb[..., 2].copy())
         attributes.pop("chromaticities", None)
     return ExrImage(channels=channels, attributes=attributes, source=Path(path))

@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, to_rec709_matrix
+from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, in_rec709
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.file_magic import starts_with
@@ -120,7 +120,4 @@ def _corrected(path: Path, values: np.ndarray, image_format: str, variables: lis
                              f"{', '.join(f'{value:.3g}' for value in divisor)}, which put its radiance beyond "
                              "float32 (or below it); check the header")
         values = corrected.astype(np.float32)
-    matrix = to_rec709_matrix(EQUAL_ENERGY_XYZ_CHROMATICITIES if image_format == FORMATS[1] else primaries)
-    if matrix is not None:
-        values = values @ matrix.T.astype(np.float32)
-    return values
+    return in_rec709(values, EQUAL_ENERGY_XYZ_CHROMATICITIES if image_format == FORMATS[1] else primaries)

@@ -498,7 +498,7 @@ def _tiff_facts(path: Path) -> _TiffFacts:
                         if code in tags and len(np.ravel(tags[code].value)) >= 9]
             matrices.sort(key=lambda entry: entry[2] != _D65)  # stable: D65 first, then ColorMatrix2, 1
             facts.colour_matrices = [(name, matrix) for name, matrix, _ in matrices]
-            white_xy = _rational_values(tags[50729].value, 2) if 50729 in tags else None
+            white_xy = _tag_values(tags[50729], 2) if 50729 in tags else None
             if white_xy is not None and np.all(np.isfinite(white_xy)) and white_xy[1] > 0:
                 facts.as_shot_white_xy = (float(white_xy[0]), float(white_xy[1]))
             pages = list(_all_pages(tiff))
@@ -597,33 +597,23 @@ def _tag_numbers(tag) -> np.ndarray:
         return np.where(flat[1::2] != 0, flat[0::2] / flat[1::2], np.nan)
 
 
-def _rationals(value) -> np.ndarray:
-    """A TIFF SRATIONAL array (tifffile gives flat numerator, denominator pairs or tuples) as 3 x 3 floats."""
-    return _rational_values(value, 9).reshape(3, 3)
-
-
-def _rational_values(value, count: int) -> np.ndarray:
-    """``count`` floats of a TIFF (S)RATIONAL array given as flat numerator, denominator pairs (or as values);
-    NaN where a denominator is zero or a value is missing."""
-    flat = np.asarray(value, dtype=np.float64).ravel()
-    if flat.size >= 2 * count:
-        numerators, denominators = flat[0:2 * count:2], flat[1:2 * count:2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            flat = np.where(denominators != 0, numerators / denominators, np.nan)
-    return np.concatenate([flat[:count], np.full(max(0, count - flat.size), np.nan)])
+def _tag_values(tag, count: int) -> np.ndarray:
+    """``count`` floats of a numeric TIFF tag (:func:`_tag_numbers`), NaN where a value is missing."""
+    values = _tag_numbers(tag)[:count]
+    return np.concatenate([values, np.full(count - values.size, np.nan)])
 
 
 def _dng_transform(tags, matrix_code: int, calibration_code: int) -> np.ndarray:
     """The DNG model's XYZ -> camera matrix for one calibration illuminant: AnalogBalance x CameraCalibration x
     ColorMatrix; the calibration only when the CameraCalibrationSignature (50931) equals the
     ProfileCalibrationSignature (50932), both absent included."""
-    matrix = _rationals(tags[matrix_code].value)
+    matrix = _tag_values(tags[matrix_code], 9).reshape(3, 3)
     if calibration_code in tags and _text(tags, 50931) == _text(tags, 50932):
-        calibration = _rationals(tags[calibration_code].value)
+        calibration = _tag_values(tags[calibration_code], 9).reshape(3, 3)
         if np.all(np.isfinite(calibration)):
             matrix = calibration @ matrix
     if 50727 in tags:
-        balance = _rational_values(tags[50727].value, 3)
+        balance = _tag_values(tags[50727], 3)
         if np.all(np.isfinite(balance)) and np.all(balance > 0):
             matrix = np.diag(balance) @ matrix
     return matrix
