@@ -10,10 +10,12 @@
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
 #   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs, dealt by size),
 #                                     #    gpu-data/d (../shared/data/hdr), .whl/openexr-*.whl; prints the carries
-# A call carries at most 64 MiB together with the working tree (39 MiB), and what a call carried stays while the
-# machine is warm. So three calls, each sent within 30 s of the last one's return:
-#   1. carry gpu-data/a + .whl, run `bash tools/gpu/train.sh smoke`  (imports, CUDA, two tiny steps: ~30 s)
-#   2. carry gpu-data/b, run `true`
+# A call carries at most 64 MiB together with the working tree (39.4 MiB), and what a call carried is gone at
+# the next call (seen 2026-11-26), while /tmp stays as long as the machine is warm: every command here first
+# keeps the call's carried parts in /tmp/hdrcam-carry and puts back those of earlier calls. So three calls,
+# each sent within 30 s of the last one's return:
+#   1. carry gpu-data/a + .whl, run `bash tools/gpu/train.sh smoke`  (imports, CUDA, two tiny steps: 25 s)
+#   2. carry gpu-data/b, run `bash tools/gpu/train.sh keep`
 #   3. carry gpu-data/c + gpu-data/d, run `bash tools/gpu/train.sh fit shipped SECONDS`
 # `fit` first times 40 steps of both networks side by side (the step time of the real runs, data drawing and
 # the shared GPU included), then runs both for the steps that fit in what is left of SECONDS, so each ends on
@@ -28,9 +30,24 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 CARRY_MIB=23  # each call's carry: 64 MiB less the working tree (39.4 MiB) and a margin
 
-device_python() {  # the device's python lacks OpenEXR: the carried wheel; hdrcam from this tree
+keep_carries() {  # this call's carried parts into /tmp/hdrcam-carry, and the earlier calls' back from there
+    local kept=/tmp/hdrcam-carry
+    mkdir -p "$kept/gpu-data" gpu-data
+    for part in gpu-data/* .whl; do
+        if [ -d "$part" ] && [ -n "$(ls -A "$part")" ]; then
+            mkdir -p "$kept/$part" && cp -r "$part/." "$kept/$part/"
+        fi
+    done
+    cp -r "$kept/gpu-data/." gpu-data/
+    if [ -d "$kept/.whl" ]; then mkdir -p .whl && cp -r "$kept/.whl/." .whl/; fi
+}
+
+device_python() {  # the device's python lacks OpenEXR: the carried wheel, installed once; hdrcam from this tree
+    keep_carries
     if ! python3 -c "import OpenEXR" 2>/dev/null; then
-        python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl
+        if ! PYTHONPATH=/tmp/site python3 -c "import OpenEXR" 2>/dev/null; then
+            python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl
+        fi
         export PYTHONPATH=/tmp/site:${PYTHONPATH:-}
     fi
     export PYTHONPATH=$PWD:${PYTHONPATH:-}
@@ -85,6 +102,10 @@ for photo in sorted(Path("runs/data/train").iterdir(), key=lambda f: -f.stat().s
 DEAL
     du -sh gpu-data/* .whl
     echo "carries: 1. gpu-data/a .whl (smoke)  2. gpu-data/b (true)  3. gpu-data/c gpu-data/d (fit shipped SECONDS)"
+    ;;
+keep)  # on the device: a call that only carries
+    keep_carries
+    ls gpu-data
     ;;
 smoke)  # on the device after the first carry: CUDA, imports, two tiny steps of each network side by side
     device_python
@@ -170,7 +191,7 @@ slice)
     tail -n 1 "$RUN/log.jsonl" 2>/dev/null || echo "no step logged yet"
     ;;
 *)
-    echo "usage: $0 prepare | smoke | fit shipped SECONDS | slice a7-rank1 [SECONDS]" >&2
+    echo "usage: $0 prepare | keep | smoke | fit shipped SECONDS | slice a7-rank1 [SECONDS]" >&2
     exit 2
     ;;
 esac
