@@ -8,7 +8,8 @@ same network scored on frames captured through the bare lens, ``evaluate --psf``
 hdrcnn-blend rows, which belong to the first run. Rows: scene kinds (from split.csv, by image stem) and
 'all'; columns: linear PSNR (dB, peak 2^8) of each method as its mean gain over the FIRST run's LDR capture
 (one reference for every column, so columns compare directly), that LDR mean itself, the worst photograph's
-gain, and how many photographs the first run's ``hdrcam`` leaves more than 0.3 dB below its LDR.
+gain, and how many photographs the first run's pipeline (``hdrcam``, or the name evaluate gave its
+--checkpoint) leaves more than 0.3 dB below its LDR.
 """
 
 from __future__ import annotations
@@ -46,11 +47,13 @@ def read_runs(entries: list[str]) -> dict[str, dict[str, float]]:
 
 def table(scores: dict[str, dict[str, float]], kinds: dict[str, str]) -> str:
     methods = [m for m in next(iter(scores.values())) if m != "ldr"]
+    # the first run's full pipeline: `hdrcam` for the default checkpoint, else the name evaluate gave --checkpoint
+    pipeline = next(m for m in methods if m != "hdrcnn-blend" and not m.endswith("-network") and ":" not in m)
     groups = defaultdict(list)
     for image in scores:
         groups[kinds.get(image, "unknown")].append(image)
     lines = ["| scene kind | photos | LDR (dB) | " + " | ".join(f"{m}: gain (worst)" for m in methods)
-             + " | photos > 0.3 dB below LDR (" + methods[methods.index("hdrcam")] + ") |",
+             + f" | photos > 0.3 dB below LDR ({pipeline}) |",
              "|---|---|---|" + "---|" * len(methods) + "---|"]
     for kind in sorted(groups) + ["all"]:
         images = list(scores) if kind == "all" else groups[kind]
@@ -59,7 +62,7 @@ def table(scores: dict[str, dict[str, float]], kinds: dict[str, str]) -> str:
         for method in methods:
             gain = np.array([scores[i][method] for i in images]) - ldr
             cells.append(f"{gain.mean():+.2f} ({gain.min():+.2f})")
-        harmed = sum(scores[i]["hdrcam"] - scores[i]["ldr"] < -HARM_DB for i in images)
+        harmed = sum(scores[i][pipeline] - scores[i]["ldr"] < -HARM_DB for i in images)
         lines.append(f"| {kind} | {len(images)} | {ldr.mean():.2f} | " + " | ".join(cells) + f" | {harmed} |")
     return "\n".join(lines) + "\n"
 
