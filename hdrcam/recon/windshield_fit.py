@@ -35,7 +35,7 @@ import torch
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, two_point_star
 from hdrcam.recon.blob_amplitudes import fit_blob_amplitudes
 from hdrcam.recon.tiling import clipped_clusters, clipped_mask
-from hdrcam.sensor import fft_convolve
+from hdrcam.sensor import fft_convolve, without_fft_round_off
 
 PSF_SIZE_PX = 63  # the streak length the model allows for (the size the windshield network was trained with)
 BACKGROUND_OFFSETS_PX = (3, 4, 5)
@@ -49,7 +49,6 @@ EVIDENCE_DISTANCE_PX = 4  # the evidence for streaks is judged on pixels at leas
 MIN_EVIDENCE = 50.0  # F statistic below which a cluster's fitted streaks are not subtracted (_evidence)
 SIDE_AGREEMENT = 0.3  # each side of a cluster shows at least this share of its streaks' amplitude (_two_sided)
 MIN_SIDE_PIXELS = 20  # evidence pixels on a side, reached by the streaks, below which that side cannot tell
-STREAK_ROUND_OFF = 1e-6  # of the fitted streaks' peak: below it, the FFT's round-off (~1e-8), not a streak
 MIN_LIGHT_PX = 2  # clipped pixels of a light that makes a cluster "several lights" (a lone glint does not)
 
 
@@ -165,8 +164,8 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     side's evidence pixels (:func:`_evidence_weight`) is at least SIDE_AGREEMENT of the amplitude fitted on both.
     A lamppost's pole or a mast above a light is one-sided (0.00-0.01 against 0.69-1.25 for windshield streaks
     on procedural night scenes) and fitted as streaks with F 342-1082 - the pole's light was subtracted, down to
-    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (FFT round-off, below
-    STREAK_ROUND_OFF of their peak, reaches none: a light at the frame's top or bottom edge) cannot tell, and
+    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (FFT round-off, set to 0 by
+    hdrcam.sensor.without_fft_round_off, reaches none: a light at the frame's top or bottom edge) cannot tell, and
     passes; so does a cluster of several lights of at least MIN_LIGHT_PX pixels each, whose rows above and below
     one another's do not split into sides (on procedural night scenes such a cluster of 17 lights read -0.60
     above, and its streaks, removed, gained 4.4 dB). Known: a streak that clips over a bright wall below its
@@ -176,7 +175,7 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     if int((sizes >= MIN_LIGHT_PX).sum()) > 1:
         return True
     weight = _evidence_weight(crop)
-    model = torch.where(streaks > STREAK_ROUND_OFF * streaks.max(), streaks, torch.zeros_like(streaks))
+    model = without_fft_round_off(streaks)
     rows = torch.arange(weight.shape[1], dtype=torch.float32)[:, None].expand(weight.shape[1:])
     centre = float(rows[crop.blob_mask[0] > 0].mean())
 
