@@ -85,6 +85,7 @@ class _Crop:
     blob_mask: torch.Tensor  # (3, H, W) 1 on clipped pixels
     index: torch.Tensor  # flattened blob labels
     blob_count: int
+    evidence_weight: torch.Tensor  # (3, H, W) the fit's pixels the evidence is judged on (_evidence_weight)
 
 
 def subtract_windshield_streaks(frame: np.ndarray) -> tuple[np.ndarray, WindshieldFitReport]:
@@ -136,10 +137,11 @@ def _crops(frame: np.ndarray, clipped: np.ndarray) -> list[_Crop]:
         blob_count, labels = cv2.connectedComponents(own.astype(np.uint8), connectivity=8)
         streaks = frame[where] - directional_background(frame[where])
         to_tensor = lambda image: torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
-        weight = np.repeat((near[where] == 0)[..., None], 3, axis=-1).astype(np.float32)
+        weight = to_tensor(np.repeat((near[where] == 0)[..., None], 3, axis=-1).astype(np.float32))
         mask = np.repeat(own[..., None], 3, axis=-1).astype(np.float32)
-        crops.append(_Crop(where, to_tensor(streaks), to_tensor(weight), to_tensor(mask),
-                           torch.from_numpy(labels.astype(np.int64)).reshape(-1), blob_count))
+        crops.append(_Crop(where, to_tensor(streaks), weight, to_tensor(mask),
+                           torch.from_numpy(labels.astype(np.int64)).reshape(-1), blob_count,
+                           _evidence_weight(own, weight)))
     return crops
 
 
@@ -149,13 +151,13 @@ def _fit(crop: _Crop, tails: torch.Tensor, iterations: int) -> torch.Tensor:
                                iterations)
 
 
-def _evidence_weight(crop: _Crop) -> torch.Tensor:
-    """(3, H, W): the fit's pixels at least EVIDENCE_DISTANCE_PX from the cluster's clipped ones."""
-    own = (crop.blob_mask[0].numpy() > 0).astype(np.uint8)
+def _evidence_weight(own: np.ndarray, weight: torch.Tensor) -> torch.Tensor:
+    """(3, H, W): the fit's pixels (``weight``) at least EVIDENCE_DISTANCE_PX from the cluster's clipped ones
+    (``own``, H x W bool)."""
     side = 2 * EVIDENCE_DISTANCE_PX + 1
-    far = torch.from_numpy((cv2.dilate(own, cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))) == 0)
-                           .astype(np.float32))
-    return crop.weight * far
+    far = torch.from_numpy((cv2.dilate(own.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (side, side)))
+                            == 0).astype(np.float32))
+    return weight * far
 
 
 def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
@@ -174,7 +176,7 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     sizes = torch.bincount(crop.index, minlength=crop.blob_count)[1:]
     if int((sizes >= MIN_LIGHT_PX).sum()) > 1:
         return True
-    weight = _evidence_weight(crop)
+    weight = crop.evidence_weight
     model = without_fft_round_off(streaks)
     rows = torch.arange(weight.shape[1], dtype=torch.float32)[:, None].expand(weight.shape[1:])
     centre = float(rows[crop.blob_mask[0] > 0].mean())
@@ -201,7 +203,7 @@ def _evidence(crop: _Crop, streaks: torch.Tensor) -> float:
     night scenes of 256 px of the test set: 6.0-2870 around lights behind a windshield (5 of 31 clusters below
     MIN_EVIDENCE), -2.1-130 around the same lights behind a clean one (1 of 36 above); the clipped areas of 5
     real photographs (hdr/, 320 px centre crops): 0.9-14.5 behind a windshield, 0.1-11.2 without."""
-    weight = _evidence_weight(crop)
+    weight = crop.evidence_weight
     unexplained = float((weight * crop.streaks ** 2).sum())
     left = float((weight * (crop.streaks - streaks) ** 2).sum())
     amplitudes = 3 * (crop.blob_count - 1)
