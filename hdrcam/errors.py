@@ -15,6 +15,7 @@ Exit statuses (``hdrcam.cli.main`` applies them, in this one place):
 from __future__ import annotations
 
 import errno
+import re
 import signal
 
 EXIT_FAILURE, EXIT_USAGE, EXIT_BUG = 1, 2, 3
@@ -139,9 +140,14 @@ def failure_message(error: BaseException) -> str | None:
     return None
 
 
+_OTHER_SURROGATES = re.compile("[\ud800-\udc7f\udd00-\udfff]")  # none stands for an undecodable byte (PEP 383)
+
+
 def escaped_name(text: str) -> str:
     """``text`` with the bytes of a file name that is not valid UTF-8 (held by Python as lone surrogates) written
-    as \\xNN, so it can be written out as UTF-8: b"caf\\xe9.exr" -> "caf\\xe9.exr"."""
+    as \\xNN, so it can be written out as UTF-8: b"caf\\xe9.exr" -> "caf\\xe9.exr". Any other lone surrogate (a
+    JSON file's "\\ud800", say) is written as \\uNNNN."""
+    text = _OTHER_SURROGATES.sub(lambda match: f"\\u{ord(match[0]):04x}", text)
     return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
 
 

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from hdrcam.profiles import load_profile
-from hdrcam.sensor import Sensor, add_noise, bayer_mosaic, fft_convolve, quantise
+from hdrcam.sensor import Sensor, add_noise, bayer_mosaic, fft_convolve, quantise, without_fft_round_off
 
 
 def direct_convolve(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
@@ -43,6 +43,24 @@ def test_convolution_is_linear_not_circular():
     result = fft_convolve(image, kernel)
     assert float(result[..., -3:, :].abs().max()) < 1e-7 and float(result[..., :, -3:].abs().max()) < 1e-7
     assert float(result[..., :3, :3].sum()) == pytest.approx(9 / 25, rel=1e-5)
+
+
+def test_fft_round_off_is_set_to_zero_per_plane_and_a_dim_planes_light_is_kept():
+    """One floor (hdrcam.sensor.without_fft_round_off) for the consistency check and the windshield fit, each plane
+    against its own largest value: the fit's own floor, against the largest value of all three, set a dim
+    plane's light to 0 (a red lamp's blue streak 1e-7 of its red one) with its round-off."""
+    image = np.zeros((3, 40, 40), np.float32)
+    image[:, 20, 20] = (1000.0, 1.0, 1e-4)
+    kernel = np.zeros((3, 15, 15), np.float32)
+    kernel[:, 7, 7], kernel[:, 7, 0], kernel[:, 0, 3] = 0.9, 0.07, 0.03
+    raw = fft_convolve(torch.from_numpy(image), torch.from_numpy(kernel)).numpy()
+    result = without_fft_round_off(torch.from_numpy(raw)).numpy()
+    for plane in range(3):
+        lit = direct_convolve(image[plane].astype(np.float64), kernel[plane].astype(np.float64)) > 0
+        assert np.any(raw[plane][~lit] != 0.0)  # the FFT's round-off, where no light goes
+        assert np.all(result[plane][~lit] == 0.0)
+        np.testing.assert_allclose(result[plane][lit], raw[plane][lit])  # the light, as convolved
+    assert np.all(raw[2] <= 1e-6 * raw.max())  # the global floor took the blue light for round-off
 
 
 @pytest.mark.parametrize("size", [4, 5])

@@ -80,14 +80,12 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
     from hdrcam.profiles import load_profile
-    from hdrcam.api import load_network_model, network_windows, reconstruct, resolve_partner
+    from hdrcam.api import checked_device, load_network_model, network_windows, reconstruct, resolve_partner
     from hdrcam.recon.streaks import check_streaks
     from hdrcam.recon.tiling import plan_regions
 
-    device = compute_device(arguments.device)
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
-    if dtype != torch.float32 and device.type != "cuda":
-        raise InputError(f"--precision {arguments.precision} needs a CUDA device (on CPUs it is many times slower)")
+    device = checked_device(compute_device(arguments.device), dtype)  # before any file is read
     inputs = [*arguments.inputs, *(path for path in (arguments.psf, arguments.checkpoint, arguments.partner)
                                    if isinstance(path, Path))]
     check_outputs_of_inputs(((source, output_paths(arguments.out, source)) for source in arguments.inputs),

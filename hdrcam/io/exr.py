@@ -29,7 +29,7 @@ import numpy as np
 import OpenEXR
 
 from hdrcam.colorimetry import REC709_CHROMATICITIES, in_rec709, normalised_primary_matrix, to_rec709_matrix
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, escaped_name
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.file_magic import starts_with
@@ -326,7 +326,7 @@ def write_exr_channels(path: Path, channels: dict[str, np.ndarray], *, attribute
     for key, value in (attributes or {}).items():
         value = value.item() if isinstance(value, np.generic) else value
         if isinstance(value, str):  # a file name that is not UTF-8 is stored with its odd bytes escaped
-            value = value.encode("utf-8", "backslashreplace").decode("utf-8")
+            value = escaped_name(value)
         header[key] = value
     if OpenEXR.global_thread_count() < worker_threads():
         with contextlib.suppress(RuntimeError):  # threads it cannot start (a memory limit): it writes on this one

@@ -64,6 +64,7 @@ import tifffile
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.dng_opcodes import shading_opcodes
+from hdrcam.io.tiff_image import is_full_resolution_image
 from hdrcam.limits import check_image_size
 
 _CFA_LETTERS = "RGBG"  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
@@ -507,7 +508,7 @@ def _tiff_facts(path: Path) -> _TiffFacts:
             facts.data_end_bytes = max((end for end, _ in ends), default=0)
             facts.data_end_checked = facts.data_end_bytes > 0 and all(trusted for _, trusted in ends)
             if facts.file_format == "DNG":
-                full_resolution = [page for page in pages if _subfile_type(page) == 0]  # not previews
+                full_resolution = [page for page in pages if is_full_resolution_image(page)]  # not previews
                 facts.shading_opcodes = tuple(dict.fromkeys(name for page in full_resolution
                                                             for name in shading_opcodes(page.tags)))
                 mosaic = next((page.tags for page in full_resolution if page.photometric == 32803), {})  # CFA
@@ -626,11 +627,6 @@ def _all_pages(tiff: tifffile.TiffFile):
         page = stack.pop()
         yield page
         stack.extend(getattr(page, "pages", None) or [])
-
-
-def _subfile_type(page) -> int:
-    """A TIFF page's NewSubfileType (0: the full-resolution image; 1: a reduced preview)."""
-    return int(page.tags[254].value) if 254 in page.tags else 0
 
 
 def _data_end(page) -> tuple[int, bool]:

@@ -50,13 +50,22 @@ def read_tiff_samples(path: Path) -> np.ndarray:
     return samples
 
 
-REDUCED_RESOLUTION = 1  # NewSubfileType bit 0 (TIFF 6.0, section 8): a reduced-resolution copy of another image
+MULTI_PAGE = 2  # NewSubfileType bit 1 (TIFF 6.0, section 8): one page of a multi-page image, at full resolution
+
+
+def is_full_resolution_image(page) -> bool:
+    """Whether a tifffile page is a full-resolution image: NewSubfileType 0 (a DNG's raw image), or 2 (one page of
+    a multi-page image). Any other bit makes it something else (TIFF 6.0, section 8; DNG 1.7): 1 a
+    reduced-resolution copy (a thumbnail, a DNG's preview; 0x10001 an alternate one), 4 a transparency mask
+    (0x10004 a DNG semantic mask), 8 a DNG depth map, 16 a DNG enhanced image, 32 a DNG gain map. tifffile reads
+    the tag, or the older SubfileType (2: reduced, 3: a page)."""
+    return not page.subfiletype & ~MULTI_PAGE
 
 
 def _full_resolution_page(tiff):
-    """The file's first full-resolution image: a writer may store a thumbnail (NewSubfileType bit 0 set) first,
-    which was read as the frame."""
-    return next((page for page in tiff.pages if not page.subfiletype & REDUCED_RESOLUTION), tiff.pages[0])
+    """The file's first full-resolution image: a writer may store a thumbnail first, which was read as the
+    frame, or a transparency mask."""
+    return next((page for page in tiff.pages if is_full_resolution_image(page)), tiff.pages[0])
 
 
 ICC_PROFILE_TAG = 34675  # InterColorProfile (TIFF/EP, TIFF 6 technical note)

@@ -78,7 +78,7 @@ import numpy as np
 import torch
 
 from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
-from hdrcam.sensor import fft_convolve
+from hdrcam.sensor import fft_convolve, without_fft_round_off
 
 K_SIGMA = 3.0  # noise allowance of the upper bound, in standard deviations
 TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
@@ -95,8 +95,6 @@ SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean 
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
 STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
-FFT_ROUND_OFF = 1e-6  # of a float32 FFT convolution's largest value: below it, round-off (measured 8e-8 of the
-# peak over 96 px, 6.5e-7 over 2048-4096 px), not light; the shipped PSFs hold at most 5e-6 of their light there
 
 
 @dataclasses.dataclass(frozen=True)
@@ -310,11 +308,8 @@ def _cap_shapes(estimate: np.ndarray, clipped_channels: np.ndarray, clipped: np.
 
 
 def _convolve(image: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
-    """P * image (H x W x 3), with the FFT's round-off - values within FFT_ROUND_OFF of each channel's largest
-    magnitude - set to 0: where a PSF sends no light (a Dirac pattern's tails), round-off of 1e-7 of the peak
-    counted as witnesses and was fitted as evidence (a proposal of 200 kept at 67-200 for a light twice white)."""
+    """P * image (H x W x 3), without the FFT's round-off (hdrcam.sensor.without_fft_round_off): where a PSF sends
+    no light (a Dirac pattern's tails), round-off of 1e-7 of the peak counted as witnesses and was fitted as
+    evidence (a proposal of 200 kept at 67-200 for a light twice white)."""
     planes = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
-    result = fft_convolve(planes, kernel).numpy()
-    floor = FFT_ROUND_OFF * np.abs(result).max(axis=(1, 2), keepdims=True)
-    result[np.abs(result) <= floor] = 0.0
-    return result.transpose(1, 2, 0)
+    return without_fft_round_off(fft_convolve(planes, kernel)).numpy().transpose(1, 2, 0)

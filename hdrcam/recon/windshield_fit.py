@@ -35,7 +35,7 @@ import torch
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, two_point_star
 from hdrcam.recon.blob_amplitudes import fit_blob_amplitudes
 from hdrcam.recon.tiling import clipped_clusters, clipped_mask
-from hdrcam.sensor import fft_convolve
+from hdrcam.sensor import fft_convolve, without_fft_round_off
 
 PSF_SIZE_PX = 63  # the streak length the model allows for (the size the windshield network was trained with)
 BACKGROUND_OFFSETS_PX = (3, 4, 5)
@@ -49,7 +49,6 @@ EVIDENCE_DISTANCE_PX = 4  # the evidence for streaks is judged on pixels at leas
 MIN_EVIDENCE = 50.0  # F statistic below which a cluster's fitted streaks are not subtracted (_evidence)
 SIDE_AGREEMENT = 0.3  # each side of a cluster shows at least this share of its streaks' amplitude (_two_sided)
 MIN_SIDE_PIXELS = 20  # evidence pixels on a side, reached by the streaks, below which that side cannot tell
-STREAK_ROUND_OFF = 1e-6  # of the fitted streaks' peak: below it, the FFT's round-off (~1e-8), not a streak
 MIN_LIGHT_PX = 2  # clipped pixels of a light that makes a cluster "several lights" (a lone glint does not)
 
 
@@ -86,6 +85,7 @@ class _Crop:
     blob_mask: torch.Tensor  # (3, H, W) 1 on clipped pixels
     index: torch.Tensor  # flattened blob labels
     blob_count: int
+    evidence_weight: torch.Tensor  # (3, H, W) the fit's pixels the evidence is judged on (_evidence_weight)
 
 
 def subtract_windshield_streaks(frame: np.ndarray) -> tuple[np.ndarray, WindshieldFitReport]:
@@ -137,10 +137,11 @@ def _crops(frame: np.ndarray, clipped: np.ndarray) -> list[_Crop]:
         blob_count, labels = cv2.connectedComponents(own.astype(np.uint8), connectivity=8)
         streaks = frame[where] - directional_background(frame[where])
         to_tensor = lambda image: torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
-        weight = np.repeat((near[where] == 0)[..., None], 3, axis=-1).astype(np.float32)
+        weight = to_tensor(np.repeat((near[where] == 0)[..., None], 3, axis=-1).astype(np.float32))
         mask = np.repeat(own[..., None], 3, axis=-1).astype(np.float32)
-        crops.append(_Crop(where, to_tensor(streaks), to_tensor(weight), to_tensor(mask),
-                           torch.from_numpy(labels.astype(np.int64)).reshape(-1), blob_count))
+        crops.append(_Crop(where, to_tensor(streaks), weight, to_tensor(mask),
+                           torch.from_numpy(labels.astype(np.int64)).reshape(-1), blob_count,
+                           _evidence_weight(own, weight)))
     return crops
 
 
@@ -150,13 +151,13 @@ def _fit(crop: _Crop, tails: torch.Tensor, iterations: int) -> torch.Tensor:
                                iterations)
 
 
-def _evidence_weight(crop: _Crop) -> torch.Tensor:
-    """(3, H, W): the fit's pixels at least EVIDENCE_DISTANCE_PX from the cluster's clipped ones."""
-    own = (crop.blob_mask[0].numpy() > 0).astype(np.uint8)
+def _evidence_weight(own: np.ndarray, weight: torch.Tensor) -> torch.Tensor:
+    """(3, H, W): the fit's pixels (``weight``) at least EVIDENCE_DISTANCE_PX from the cluster's clipped ones
+    (``own``, H x W bool)."""
     side = 2 * EVIDENCE_DISTANCE_PX + 1
-    far = torch.from_numpy((cv2.dilate(own, cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))) == 0)
-                           .astype(np.float32))
-    return crop.weight * far
+    far = torch.from_numpy((cv2.dilate(own.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (side, side)))
+                            == 0).astype(np.float32))
+    return weight * far
 
 
 def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
@@ -165,8 +166,8 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     side's evidence pixels (:func:`_evidence_weight`) is at least SIDE_AGREEMENT of the amplitude fitted on both.
     A lamppost's pole or a mast above a light is one-sided (0.00-0.01 against 0.69-1.25 for windshield streaks
     on procedural night scenes) and fitted as streaks with F 342-1082 - the pole's light was subtracted, down to
-    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (FFT round-off, below
-    STREAK_ROUND_OFF of their peak, reaches none: a light at the frame's top or bottom edge) cannot tell, and
+    0. A side with fewer than MIN_SIDE_PIXELS evidence pixels the streaks reach (FFT round-off, set to 0 by
+    hdrcam.sensor.without_fft_round_off, reaches none: a light at the frame's top or bottom edge) cannot tell, and
     passes; so does a cluster of several lights of at least MIN_LIGHT_PX pixels each, whose rows above and below
     one another's do not split into sides (on procedural night scenes such a cluster of 17 lights read -0.60
     above, and its streaks, removed, gained 4.4 dB). Known: a streak that clips over a bright wall below its
@@ -175,8 +176,8 @@ def _two_sided(crop: _Crop, streaks: torch.Tensor) -> bool:
     sizes = torch.bincount(crop.index, minlength=crop.blob_count)[1:]
     if int((sizes >= MIN_LIGHT_PX).sum()) > 1:
         return True
-    weight = _evidence_weight(crop)
-    model = torch.where(streaks > STREAK_ROUND_OFF * streaks.max(), streaks, torch.zeros_like(streaks))
+    weight = crop.evidence_weight
+    model = without_fft_round_off(streaks)
     rows = torch.arange(weight.shape[1], dtype=torch.float32)[:, None].expand(weight.shape[1:])
     centre = float(rows[crop.blob_mask[0] > 0].mean())
 
@@ -202,7 +203,7 @@ def _evidence(crop: _Crop, streaks: torch.Tensor) -> float:
     night scenes of 256 px of the test set: 6.0-2870 around lights behind a windshield (5 of 31 clusters below
     MIN_EVIDENCE), -2.1-130 around the same lights behind a clean one (1 of 36 above); the clipped areas of 5
     real photographs (hdr/, 320 px centre crops): 0.9-14.5 behind a windshield, 0.1-11.2 without."""
-    weight = _evidence_weight(crop)
+    weight = crop.evidence_weight
     unexplained = float((weight * crop.streaks ** 2).sum())
     left = float((weight * (crop.streaks - streaks) ** 2).sum())
     amplitudes = 3 * (crop.blob_count - 1)

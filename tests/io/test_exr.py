@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import OpenEXR
 import pytest
 
-from hdrcam.errors import InputError, OutputExistsError
+from hdrcam.errors import InputError, OutputExistsError, escaped_name
 from hdrcam.io.exr import HALF_MAX, read_exr, write_exr, write_exr_channels
 
 
@@ -75,6 +77,16 @@ def test_round_trip_rgb_and_single_channel_with_attributes(tmp_path, half):
     assert image.attributes["pixel_pitch_m"] == pytest.approx(5.97e-6, rel=1e-6)
     write_exr(tmp_path / "y.exr", rgb[..., 0], channel_names=("height_m",), half=half)
     np.testing.assert_allclose(read_exr(tmp_path / "y.exr").single(), rgb[..., 0], rtol=1e-3 if half else 0)
+
+
+def test_a_non_utf8_name_in_an_attribute_is_stored_as_its_bytes_as_every_other_output_writes_it(tmp_path):
+    """One escaping (hdrcam.errors.escaped_name) for EXR attributes and the other outputs: an undecodable byte
+    was stored as Python's surrogate (caf\\udce9), where summary.md and evaluate's names write caf\\xe9."""
+    source = os.fsdecode(b"/card/caf\xe9.dng")
+    write_exr(tmp_path / "f.exr", np.ones((2, 2, 3), np.float32), attributes={"source": source, "note": "\ud800"})
+    attributes = read_exr(tmp_path / "f.exr").attributes
+    assert attributes["source"] == escaped_name(source) == "/card/caf\\xe9.dng"
+    assert attributes["note"] == "\\ud800"  # not from a file name: no byte to write, and no failure
 
 
 def test_half_overflow_and_non_finite_values_are_refused_without_a_file(tmp_path):

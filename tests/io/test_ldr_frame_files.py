@@ -255,6 +255,26 @@ def test_a_tiff_whose_first_image_is_a_thumbnail_reads_its_full_resolution_image
     np.testing.assert_array_equal(read_ldr_frame(tmp_path / "frame.tif"), counts / np.float32(65535))
 
 
+def test_a_tiffs_full_resolution_image_is_neither_a_transparency_mask_nor_a_reduced_page_of_a_multi_page_file(
+        tmp_path):
+    """One rule for TIFF frames and a DNG's raw image (hdrcam.io.tiff_image.is_full_resolution_image): NewSubfileType
+    0 or 2 (one page of a multi-page image). The TIFF reader took any page without bit 0, so a transparency mask (4)
+    before the image was read as the frame (refused as MASK samples); raw.py's rule, the whole value 0, took no page
+    of a multi-page file and fell back to its first page, a thumbnail (3)."""
+    import tifffile
+
+    counts = (_gradient() * 65535).astype(np.uint16)
+    with tifffile.TiffWriter(tmp_path / "masked.tif") as tiff:
+        tiff.write(counts[..., 0] > 30000, subfiletype=4)  # a bilevel transparency mask, written first
+        tiff.write(counts, photometric="rgb")
+    with tifffile.TiffWriter(tmp_path / "pages.tif") as tiff:
+        tiff.write(counts[::4, ::4], subfiletype=3, photometric="rgb")  # a reduced page of a multi-page image
+        tiff.write(counts, subfiletype=2, photometric="rgb")
+        tiff.write(counts[::-1], subfiletype=2, photometric="rgb")
+    for name in ("masked.tif", "pages.tif"):
+        np.testing.assert_array_equal(read_ldr_frame(tmp_path / name), counts / np.float32(65535))
+
+
 def test_grey_pngs_with_alpha_and_integer_tiffs_other_than_16_bit_unsigned_are_refused_for_what_they_are(tmp_path):
     """OpenCV expands a grey-and-alpha PNG to four channels: it read as an RGB frame (plain grey was refused).
     An int16 or uint32 TIFF was refused as "gamma-encoded"."""

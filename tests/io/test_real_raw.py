@@ -508,6 +508,20 @@ def test_shading_opcodes_are_named_once_and_only_for_the_raw_image(tmp_path):
     assert read_raw_metadata(path).shading_not_applied == ("GainMap (OpcodeList2)",)
 
 
+def test_only_the_raw_images_opcodes_are_named_not_a_masks_or_an_enhanced_images(tmp_path):
+    """The raw image is a full-resolution image page (hdrcam.io.tiff_image.is_full_resolution_image), which a DNG's
+    transparency mask (NewSubfileType 4) and enhanced image (16) are not, though neither is a reduced copy."""
+    import tifffile
+
+    path = write_dng(tmp_path / "f.dng", sensor_dn(_scene(), 0.004, np.random.default_rng(28)))
+    vignette = struct.pack(">I", 1) + struct.pack(">IIII", 3, 0x01030000, 0, 56) + bytes(56)
+    tifffile.imwrite(path, np.zeros((64, 96), bool), append=True, subfiletype=4, metadata=None,
+                     extratags=[(51022, "B", len(vignette), vignette, True)])
+    tifffile.imwrite(path, np.zeros((64, 96, 3), np.uint16), append=True, subfiletype=16, photometric="rgb",
+                     extratags=[(51022, "B", len(vignette), vignette, True)], metadata=None)
+    assert read_raw_metadata(path).shading_not_applied == ()
+
+
 def test_the_noise_peak_of_a_flat_unclipped_area_is_not_a_clip_level_and_a_dozen_clipped_samples_are():
     rng = np.random.default_rng(0)
     ramp = rng.integers(512, 15700, 60_000)  # a bright gradient, nothing clipped
