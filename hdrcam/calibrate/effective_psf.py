@@ -264,6 +264,55 @@ def fit_effective_psf(windows: list[SourceWindow], size: int) -> EffectivePsf:
                         chi2 / max(samples - size * size * 3, 1), residual, np.abs(negative), outliers)
 
 
+PHASE_STEPS = 16  # frequencies per axis at which phase_coverage looks at the PSF grid's patterns
+PHASE_INFORMATION_FLOOR = 0.01  # a pattern with less than this of an even spread's information counts as unmeasured
+
+
+def phase_coverage(windows: list[SourceWindow], positions_px: np.ndarray) -> np.ndarray:
+    """Per channel (R, G, B): the fraction of the PSF grid's patterns that sources at ``positions_px`` (n x 2,
+    y x, frame pixels) measure - 1 when their sub-pixel and CFA phases are spread, 0.25 for red and blue (0.5 for
+    green) when all share one phase, as a rigid pinhole grid whose pitch is near a whole number of pixels does.
+
+    The CFA repeats every 2 x 2 pixels, so one source's samples of a channel see the PSF at the offsets
+    t = s - p + 2 Z^2 (s the channel's sites in a 2 x 2 cell, p the position), each sample the bilinear (box-model,
+    as in the fit) mix of the four PSF pixels around t. Split the PSF into its four 2 x 2 sub-lattices and go to
+    frequencies w over the lattice (PHASE_STEPS^2 of them): each sample row becomes a 4-vector h(w), and the
+    channel's normal matrix G(w) = sum of h^H h over sources and sites is what the fit inverts, apart from the
+    window's edge. Scaled by rows / 4 (G is then the identity for sources at the four integer phases in equal
+    numbers), an eigenvalue under PHASE_INFORMATION_FLOOR marks a pattern that the data do not determine: the
+    fit's smoothness prior, or in the joint fit a trade with the positions, fills it in. The figure is the share of
+    the 4 PHASE_STEPS^2 eigenvalues above the floor. Sources whose phases lie within a few tenths of a pixel of
+    each other leave one pattern in four under the floor at every frequency (0.75), while a pattern merely damped
+    stays mostly above it: 24 pinholes all 0.45 px off their pixel centres, at the four CFA phases, give 0.87
+    (only the box blur's zero near the highest frequency) and a PSF 4 % off in L1. The floor is a smallest
+    eigenvalue of 1 % (noise amplified 10 times); the limits are in psf_calibration.check_phase_coverage.
+    """
+    omega = 2 * np.pi * np.arange(PHASE_STEPS) / PHASE_STEPS
+    omega_y, omega_x = (axis.ravel() for axis in np.meshgrid(omega, omega, indexing="ij"))
+    coverage = np.zeros(3)
+    for channel in range(3):
+        gram = np.zeros((omega_y.size, 4, 4), complex)
+        rows = 0
+        for window, (y, x) in zip(windows, positions_px):
+            site_y, site_x = np.nonzero(window.channel == channel)
+            sites = np.unique(np.stack([(window.top + site_y) % 2, (window.left + site_x) % 2], axis=1), axis=0)
+            for offset_y, offset_x in sites:
+                t_y, t_x = offset_y - y, offset_x - x
+                base_y, base_x = int(np.floor(t_y)), int(np.floor(t_x))
+                fraction_y, fraction_x = t_y - base_y, t_x - base_x
+                row = np.zeros((omega_y.size, 4), complex)
+                for a, weight_y in ((0, 1 - fraction_y), (1, fraction_y)):
+                    for b, weight_x in ((0, 1 - fraction_x), (1, fraction_x)):
+                        index_y, index_x = base_y + a, base_x + b
+                        row[:, 2 * (index_y % 2) + index_x % 2] += weight_y * weight_x * np.exp(
+                            -1j * (omega_y * (index_y // 2) + omega_x * (index_x // 2)))
+                gram += row[:, :, None].conj() * row[:, None, :]
+                rows += 1
+        if rows:
+            coverage[channel] = float((np.linalg.eigvalsh(gram) / (rows / 4) > PHASE_INFORMATION_FLOOR).mean())
+    return coverage
+
+
 def _leave_out_outliers(sources: list[_Source], scaled: np.ndarray) -> int:
     """Give no weight to the samples whose residual from the fitted model exceeds OUTLIER_SIGMAS of their noise
     (hot pixels where no dark frames found them, cosmic rays); returns how many. None are left out when more

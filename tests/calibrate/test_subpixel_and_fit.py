@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hdrcam.calibrate.effective_psf import fit_effective_psf, green_centroid_offset
-from hdrcam.calibrate.point_sources import SourceWindow
+from hdrcam.calibrate.effective_psf import fit_effective_psf, green_centroid_offset, phase_coverage
+from hdrcam.calibrate.point_sources import SourceWindow, channel_map
 from hdrcam.optics.subpixel import box_shift, split_position
 
 
@@ -105,3 +105,30 @@ def test_hot_samples_no_dark_frame_found_are_left_out_of_the_fit():
     l1 = np.abs(fit.psf - psf).sum(axis=(1, 2))
     assert l1.max() < 0.005, l1  # fitted with them: L1 up to 5 % on simulated pinholes, reduced chi2 894
     assert 10 <= fit.outlier_samples <= 30 and fit.reduced_chi2 < 1.0  # the hot ones, and a few they bent
+
+
+def _windows_at(positions: np.ndarray, half: int = 9) -> list[SourceWindow]:
+    """Windows (RGGB) around sources at ``positions`` (n x 2, y x): only their CFA sites matter here."""
+    channels = channel_map("RGGB", 512, 512)
+    windows = []
+    for y, x in positions:
+        top, left = int(y) - half, int(x) - half
+        width = 2 * half + 1
+        windows.append(SourceWindow(top, left, np.zeros((width, width)), np.ones((width, width)),
+                                    channels[top:top + width, left:left + width], np.zeros(3), np.ones(3), y, x))
+    return windows
+
+
+def test_phase_coverage_is_the_share_of_the_psf_grid_the_sources_phases_measure():
+    """One shared phase measures a quarter of the red and blue PSF grid and half of green's (the Bayer sites);
+    sources at the four CFA phases measure all of it, at any common sub-pixel offset; a rigid grid 40.1 px apart
+    (phases spread over 0.5 x 0.3 px, one CFA phase) leaves one pattern in four unmeasured."""
+    grid = np.array([(100.0 + 40 * row, 100.0 + 40 * column) for row in range(4) for column in range(6)])
+    one_phase = grid + 0.3
+    np.testing.assert_allclose(phase_coverage(_windows_at(one_phase), one_phase), [0.25, 0.5, 0.25])
+    four_phases = grid + 0.3 + np.array([(index // 2 % 2, index % 2) for index in range(len(grid))])
+    np.testing.assert_allclose(phase_coverage(_windows_at(four_phases), four_phases), 1.0)
+    rigid = np.array([(100.3 + 40.1 * row, 100.3 + 40.1 * column) for row in range(4) for column in range(6)])
+    coverage = phase_coverage(_windows_at(rigid), rigid)
+    np.testing.assert_allclose(coverage[[0, 2]], 0.75, atol=0.01)
+    np.testing.assert_allclose(phase_coverage(_windows_at(rigid + 1.0), rigid + 1.0), coverage)
