@@ -127,7 +127,7 @@ def check_phase_coverage(windows: list[SourceWindow], positions_px: np.ndarray, 
     worst = int(np.argmin(coverage))
     if coverage[worst] < limit:
         raise InputError(f"the point sources sample only {100 * coverage[worst]:.0f} % of the "
-                         f"{CHANNEL_NAMES[worst]} PSF grid's sub-pixel phases ({100 * PHASE_COVERAGE_LIMIT:.0f} % "
+                         f"{CHANNEL_NAMES[worst]} PSF grid's sub-pixel phases ({100 * limit:.0f} % "
                          "needed): they sit at nearly the same phase, as on a pinhole grid whose pitch is near a "
                          "whole number of pixels; turn the target a degree or two, use a pitch away from a whole "
                          "number of pixels, or add pinholes")

@@ -101,7 +101,7 @@ def test_pinholes_at_nearly_one_sub_pixel_phase_are_refused(tmp_path, capsys, re
     capsys.readouterr()
     recwarn.clear()
     _assert_refused(_calibrate(tmp_path / "bracket", tmp_path / "r"), capsys, tmp_path / "r",
-                    "PSF grid's sub-pixel phases (80 % needed)", recwarn)
+                    "% needed): they sit at nearly the same phase", recwarn)
 
 
 @pytest.mark.parametrize("pitch_px", [40.6, 41.1])
