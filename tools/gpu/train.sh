@@ -23,7 +23,9 @@
 # log.jsonl and config.json, and timing.txt. Measure runs/shipped-gpu/main/model.pt with
 # runs/shipped-gpu/partner/model.pt as tools/results/real-data/README.md measures a pair, against a rule
 # written first, then ship with tools/ship_checkpoint.py.
-# a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py.
+# a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py. Its slices resume the
+# run folder a call left: /tmp was seen to stay between calls, the tree's ignored runs/ was not checked, so give
+# RUN=/tmp/a7-rank1 (and copy $OUT's files back into it on a fresh machine).
 # STEPS, CROP, BATCH, DATA, RUN override a job's defaults (a CPU smoke test: CROP=64 BATCH=1 STEPS=2
 # DATA=procedural).
 set -euo pipefail
@@ -101,7 +103,7 @@ for photo in sorted(Path("runs/data/train").iterdir(), key=lambda f: -f.stat().s
     room[part] -= photo.stat().st_size
 DEAL
     du -sh gpu-data/* .whl
-    echo "carries: 1. gpu-data/a .whl (smoke)  2. gpu-data/b (true)  3. gpu-data/c gpu-data/d (fit shipped SECONDS)"
+    echo "carries: 1. gpu-data/a .whl (smoke)  2. gpu-data/b (keep)  3. gpu-data/c gpu-data/d (fit shipped SECONDS)"
     ;;
 keep)  # on the device: a call that only carries
     keep_carries
