@@ -37,6 +37,7 @@ LSMR_ITERATIONS = 400
 MAX_STEP_PX = 0.5
 OUTLIER_SIGMAS = 8.0  # a residual this many noise sigmas from the fit is no sample of the PSF (a hot pixel)
 MAX_OUTLIER_FRACTION = 0.05  # of the samples: more than hot pixels make (1e-3 of the pixels: 1.3 % of the samples)
+CORE_SHARE = 0.1  # of a source's brightest predicted sample: samples predicted brighter are never left out
 
 
 @dataclasses.dataclass
@@ -317,14 +318,21 @@ def _leave_out_outliers(sources: list[_Source], scaled: np.ndarray) -> int:
     """Give no weight to the samples whose residual from the fitted model exceeds OUTLIER_SIGMAS of their noise
     (hot pixels where no dark frames found them, cosmic rays); returns how many. None are left out when more
     than MAX_OUTLIER_FRACTION of the samples would be: then the model itself misses (a --size smaller than the
-    PSF), and dropping samples would hide it."""
+    PSF), and dropping samples would hide it.
+
+    Samples the model predicts brighter than CORE_SHARE of the source's brightest are kept whatever their
+    residual: hot pixels and cosmic rays fall at random places, almost all outside the few pixels of a core,
+    while a first fit that misses (bent by those very hot pixels) misses most where the signal is. Leaving its
+    core samples out left the refit no data at the peak: 15 pinholes on rigid grids 80.7-81.25 px apart at 63
+    px dropped 661-1064 samples, many of them every source's peak, and the PSF was written 56-172 % off in L1
+    (blue's peak a tenth of the truth) with reduced chi2 0.94-1.25 and no warning; keeping them, 2-8 %."""
     outlying = []
     for source in sources:
         window = source.window
         model = source.model(scaled)[0]
         predicted = source.brightness * np.take_along_axis(model, window.channel[None].astype(np.int64), 0)[0]
         outlying.append((np.abs(window.rate - predicted) * np.sqrt(window.weight) > OUTLIER_SIGMAS)
-                        & (window.weight > 0))
+                        & (window.weight > 0) & (predicted <= CORE_SHARE * predicted.max()))
     count = sum(int(mask.sum()) for mask in outlying)
     samples = sum(int((source.window.weight > 0).sum()) for source in sources)
     if count > MAX_OUTLIER_FRACTION * samples:
