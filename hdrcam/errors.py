@@ -101,7 +101,7 @@ _USB_DEFAULT_ADVICE = ("check the camera's cable, power and PC-remote mode, then
 
 def os_error_message(error: OSError) -> str:
     """One line for an operating-system error: the path(s) involved, what happened and what to do."""
-    paths = [str(p if not isinstance(p, bytes) else p.decode("utf-8", "backslashreplace"))
+    paths = [escaped_name(p.decode("utf-8", "surrogateescape") if isinstance(p, bytes) else str(p))
              for p in (error.filename, error.filename2) if p is not None]
     where = " -> ".join(paths) if paths else None
     module = type(error).__module__ or ""
