@@ -135,10 +135,14 @@ def test_a_ratio_far_from_its_label_is_used_and_warned_about(tmp_path):
     bracket, _ = capture(tmp_path, seed=2)
     frames = read_bracket([tmp_path])
     frames[-1] = _relabelled(frames[-1], frames[-1].metadata.exposure_s * 2)
-    expected = r"frames 3-4: their data give an exposure ratio of 7\.\d+ where the labels say 16 \(-1\.\d stops\)"
-    with pytest.warns(UserWarning, match=expected):
+    expected = r"frames 3-4: their data give an exposure ratio of ([\d.]+) where the labels say 16 \(-1\.0 stops\)"
+    with pytest.warns(UserWarning, match=expected) as warned:
         merged = merge_bayer(frames, PROFILE.camera)
     true = np.array([f.true_exposure_s for f in bracket.frames])
+    # the ratio said is the one used, within 1 % of the truth (8): not its digits, which move with the machine
+    # (below 8 where the test was written, 8.004 on an AMD EPYC with the same packages)
+    said = float(re.search(expected, str(warned[0].message)).group(1))
+    assert said == pytest.approx(merged.exposures_s[4] / merged.exposures_s[3], rel=1e-3)
     assert abs(np.log(merged.exposures_s[4] / merged.exposures_s[3] / (true[4] / true[3]))) < 0.01
 
 
