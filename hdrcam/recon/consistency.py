@@ -35,9 +35,16 @@ only take that excess down, never up, so the result is never brighter than the p
   A(v) = v - P * (v 1_U) (U: unclipped), A(y - P * B) = A(P * H_U) + A(P * E) where B is right. On the unclipped
   pixels EVIDENCE_INNER_PX..evidence_outer_px(PSF) from the cluster, A(y - P * B) is fitted by
   a A(P * E_proposed) + b A(P * D) + c, D = the most light the unclipped edge band can hide (y (1/P0 - 1),
-  P0 the PSF's centre value), least squares. Its significance z = a / s, s the standard error of a from the
-  residual variance (at least the noise's) x TEXTURE_CORRELATION; where the excess's light and the edge's are
-  alike (a weak DOE, a small excess), z is small: fall back. The kept share is
+  P0 the PSF's centre value), least squares. The ring starts EVIDENCE_INNER_PX beyond the highlight's bright
+  edge - the cluster's clipped pixels with the unclipped pixels at NEAR_WHITE or above (in some channel)
+  joined to them - not beyond its clipped pixels alone: a highlight barely above the clip level records its
+  own pixels a few deep below white (where the lens core and the DOE's ring send more than 1 - 1/1.05 of their
+  light past its edge, a disc at 1.05 clips only inside), and their unknown light dwarfs its streaks (such a
+  disc on a 0.25-0.4 ramp: 214 unclipped blue pixels of its own, fitted as 28 x its true streaks at z 5;
+  tests/recon/test_do_no_harm.py; tools/results/real-data/README.md, "A barely clipped highlight's own edge").
+  Its significance z = a / s, s the standard error of a from the residual variance (at least the noise's) x
+  TEXTURE_CORRELATION; where the excess's light and the edge's are alike (a weak DOE, a small excess), z is
+  small: fall back. The kept share is
   (a + TEXTURE_SD_ALLOWANCE s_T) (1 - (Z_MIN / z)^2) for z > Z_MIN (at most 1), else 0, where s_T is the
   standard error from the residual variance beyond the noise's: the unclipped scene's own residual under A,
   A(P * H_U), is not noise but texture correlated with the streaks (2-5 x their light in norm around night
@@ -85,6 +92,7 @@ TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
 LOCAL_BOUND_PX = 5  # a clipped pixel answers for the unclipped pixels this close (the shipped DOE's ring + 1)
 LOCAL_BOUND_ITERATIONS = 3
 EVIDENCE_INNER_PX = 2  # the lens core: a highlight's own edge blurs this far (evidence starts beyond)
+NEAR_WHITE = 0.9  # an unclipped pixel this bright, joined to a cluster, is its highlight's own edge ("Evidence")
 EVIDENCE_ENERGY = 0.99  # the DOE's spill is read as far from the cluster as the PSF holds this share of its light
 Z_MIN = 3.0  # evidence this many standard deviations above zero is kept at (1 - (Z_MIN / z)^2) of its amount
 TEXTURE_CORRELATION = 4.0  # neighbouring residuals are correlated (texture, PSF): variance x this
@@ -172,7 +180,8 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
         shares, significance = _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
                                                 _beyond_reimaged(spill, unclipped, kernel)[inner],
                                                 _beyond_reimaged(band, unclipped, kernel)[inner],
-                                                unclipped[inner], own, noise.sigma(frame[crop]), outer_px)
+                                                unclipped[inner], own, _bright_edge(frame[crop], own),
+                                                noise.sigma(frame[crop]), outer_px)
         # one source in three bands: one share keeps its colour - the mean over the channels that hold its excess
         # (a red light's green and blue, with nothing to fit, would lift a red share of 0 to 2/3)
         proposed_channels = kept_excess.sum(axis=(0, 1)) > 0
@@ -251,14 +260,24 @@ def evidence_outer_px(psf: np.ndarray) -> int:
     return centre
 
 
+def _bright_edge(frame: np.ndarray, own: np.ndarray) -> np.ndarray:
+    """A cluster's clipped pixels ``own`` (H x W bool, on its crop of ``frame``) with the pixels at NEAR_WHITE or
+    above in some channel that are 8-connected to them: the highlight with its own bright edge."""
+    bright = (frame >= NEAR_WHITE).any(axis=-1) | own
+    _, labels = cv2.connectedComponents(bright.astype(np.uint8), connectivity=8)
+    return np.isin(labels, np.unique(labels[own]))
+
+
 def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.ndarray, unclipped: np.ndarray,
-                     own: np.ndarray, sigma: np.ndarray, outer_px: int) -> tuple[np.ndarray, float]:
+                     own: np.ndarray, edge: np.ndarray, sigma: np.ndarray, outer_px: int
+                     ) -> tuple[np.ndarray, float]:
     """(3,) shares in [0, 1] of a cluster's excess that the light beyond its lens core supports (module
     docstring, "Evidence"), and the largest of the channels' significances z (-inf where no channel was fitted):
     ``observed`` = A(y - P * B), ``predicted`` = A(P * E), ``nuisance`` = A(P * D), H x W x 3 each on the
-    cluster's crop; fitted on the unclipped pixels EVIDENCE_INNER_PX..``outer_px`` from ``own`` (the cluster's
-    clipped pixels). ``sigma``: the frame's noise there."""
-    inner = cv2.dilate(own.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
+    cluster's crop; fitted on the unclipped pixels more than EVIDENCE_INNER_PX from ``edge`` (the highlight with
+    its bright edge, _bright_edge) and at most ``outer_px`` from ``own`` (the cluster's clipped pixels).
+    ``sigma``: the frame's noise there."""
+    inner = cv2.dilate(edge.astype(np.uint8), np.ones((2 * EVIDENCE_INNER_PX + 1,) * 2, np.uint8)) > 0
     outer = cv2.dilate(own.astype(np.uint8), np.ones((2 * outer_px + 1,) * 2, np.uint8)) > 0
     shares = np.zeros(3, np.float32)  # no evidence, the frame kept: where no fit runs
     significance = -np.inf
