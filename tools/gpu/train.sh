@@ -10,7 +10,7 @@
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
 #   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs, dealt by size),
 #                                     #    gpu-data/d (../shared/data/hdr), .whl/openexr-*.whl; prints the carries
-# A call carries at most 64 MiB together with the working tree (39.4 MiB), and what a call carried is gone at
+# A call carries at most 64 MiB together with the working tree (40.0 MiB), and what a call carried is gone at
 # the next call (seen 2026-11-26), while /tmp stays as long as the machine is warm: every command here first
 # keeps the call's carried parts in /tmp/hdrcam-carry and puts back those of earlier calls. So three calls,
 # each sent within 30 s of the last one's return:
@@ -30,7 +30,11 @@
 # DATA=procedural).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-CARRY_MIB=23  # each call's carry: 64 MiB less the working tree (39.4 MiB) and a margin
+tree_mib() {  # what the tracked working tree weighs, MiB (it travels with every call)
+    git ls-files -z | xargs -0 du -cb 2>/dev/null | tail -1 | awk '{print $1 / 1048576}'
+}
+CARRY_MIB=$(awk -v tree="$(tree_mib)" 'BEGIN {print int(64 - tree - 1)}')  # each call's carry: 64 MiB less
+# the working tree (40.0 MiB on 2026-11-27) and a margin of 1 MiB
 
 keep_carries() {  # this call's carried parts into /tmp/hdrcam-carry, and the earlier calls' back from there
     local kept=/tmp/hdrcam-carry
