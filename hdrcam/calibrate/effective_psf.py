@@ -60,17 +60,6 @@ def green_centroid_offset(psf: np.ndarray) -> tuple[float, float]:
     return float((green * y).sum() / total), float((green * x).sum() / total)
 
 
-def green_centred(psf: np.ndarray) -> np.ndarray:
-    """``psf`` (3 x k x k) moved by the box model so that its green centroid sits on pixel k // 2, as calibration
-    places the PSFs it measures: the form a true or designed PSF is compared with a measured one in (a design
-    0.036 px off centre differs from itself centred by 5-6 % in L1)."""
-    offset_y, offset_x = green_centroid_offset(psf)
-    index_y, fraction_y = split_position(-offset_y)
-    index_x, fraction_x = split_position(-offset_x)
-    size = psf.shape[-1]
-    return box_shift(psf, fraction_y, fraction_x)[:, -index_y:-index_y + size, -index_x:-index_x + size]
-
-
 class _Source:
     """One window's samples, in coordinates relative to the window."""
 

@@ -113,14 +113,9 @@ def run(arguments: argparse.Namespace) -> int:
 
 
 def _psf_l1(measured, design) -> list[float]:
-    """Per-channel L1 between a measured unit-sum PSF and the design, its green centroid moved onto the centre
-    pixel as calibration places the measured one (uncentred, the design's own 0.036 px offset read as 5-6 %);
-    the larger cropped to the smaller."""
+    """Per-channel L1 between two unit-sum PSFs (the larger cropped to the smaller)."""
     import numpy as np
 
-    from hdrcam.calibrate.effective_psf import green_centred
-
-    design = green_centred(np.asarray(design, np.float64))
     size = min(measured.shape[-1], design.shape[-1])
     crops = [p[:, (p.shape[-1] - size) // 2:(p.shape[-1] + size) // 2, (p.shape[-1] - size) // 2:
                (p.shape[-1] + size) // 2] for p in (measured, design)]
