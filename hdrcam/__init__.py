@@ -1,7 +1,7 @@
 """hdrcam: snapshot HDR imaging with a learned rank-1 diffractive optical element.
 
 Implements Sun, Tseng, Fu, Heidrich, Heide, "Learning Rank-1 Diffractive Optics for Single-shot High
-Dynamic Range Imaging", CVPR 2020. Linear light and SI units throughout (see DESIGN.md).
+Dynamic Range Imaging", CVPR 2020. Linear light and SI units throughout (see README.md).
 
 The stages a Python user calls, one function each (imported on first use: ``import hdrcam`` loads neither
 numpy nor torch):

@@ -238,6 +238,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
         spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
         if spots and not clipped:  # sources clipped whole are masked out before detection: say so
             reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
+            rejected += spots if rejected else 0  # "N found - ..." lists them; else "no point source found"
         raise InputError(f"no usable point source: {rejected} found - " + ", ".join(reasons) if rejected else
                          "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
     check_enough_samples(windows, size_px)
