@@ -53,21 +53,26 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
             chosen = 1 if in_first else 2 if in_second else 0
         source[crop][own] = chosen
 
-    def picked(values: list[np.ndarray]) -> np.ndarray:
-        out = values[0].copy()
-        for index in (1, 2):
-            out[source == index] = values[index][source == index]
-        return out
+    taken = np.nonzero(source)  # the clipped pixels taken from a network's own judgement
+    taken_from = source[taken]
 
-    proposal = picked(proposals).astype(np.float32)
-    judged = picked([judged for judged, _, _ in judgements]).astype(np.float32)
-    confidence = picked([confidence for _, confidence, _ in judgements]).astype(np.float32)
+    def picked(values: list[np.ndarray]) -> np.ndarray:  # values[0] (a fresh array of this call) changed in place
+        for index in (1, 2):
+            pixels = (taken[0][taken_from == index], taken[1][taken_from == index])
+            values[0][pixels] = values[index][pixels]
+        return values[0]
+
+    proposal = picked(proposals).astype(np.float32, copy=False)
+    judged = picked([judged for judged, _, _ in judgements]).astype(np.float32, copy=False)
+    confidence = picked([confidence for _, confidence, _ in judgements]).astype(np.float32, copy=False)
+    at = np.nonzero(clipped)  # the report's sums over the clipped pixels alone (a 24 MP frame: seconds less)
+    clipped_at = clipped_channels[at]
     report = ConsistencyReport(
         clusters=judgements[0][2].clusters,
-        proposed_excess=float(np.where(clipped_channels, np.maximum(proposal, 1.0) - 1.0, 0.0).sum()),
-        kept_excess=float(np.where(clipped_channels, judged - 1.0, 0.0).sum()),
-        clipped_pixels=int(clipped.sum()),
-        fallen_back_pixels=int((confidence[clipped] < FALLEN_BACK_SHARE).sum()),
+        proposed_excess=float(np.where(clipped_at, np.maximum(proposal[at], 1.0) - 1.0, 0.0).sum()),
+        kept_excess=float(np.where(clipped_at, judged[at] - 1.0, 0.0).sum()),
+        clipped_pixels=len(at[0]),
+        fallen_back_pixels=int((confidence[at] < FALLEN_BACK_SHARE).sum()),
         confirmed=picked([report.confirmed for _, _, report in judgements]),
         strong_evidence=picked([report.strong_evidence for _, _, report in judgements]))
     return proposal, judged, confidence, report
