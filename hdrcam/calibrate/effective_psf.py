@@ -141,9 +141,10 @@ def _smoothness_weights(gradient: scipy.sparse.csr_matrix, information: np.ndarr
     pixel has no data, and the largest of all where neither has (so unsampled pixels follow their neighbours
     and sampled ones follow the data). Every difference then has a positive weight, which links all pixels to
     the sampled ones: the normal matrix is never singular, however few samples there are."""
-    pairs = np.abs(gradient).multiply(information[None, :]).tocsr()
-    low = np.array([row.data.min() if row.nnz else 0.0 for row in pairs])
-    high = np.asarray(pairs.max(axis=1).todense()).ravel()
+    if not np.all(np.diff(gradient.indptr) == 2):
+        raise ValueError("each row of the gradient operator must join two pixels")
+    pairs = information[gradient.indices.reshape(-1, 2)]  # per difference, its two pixels' data weights
+    low, high = pairs.min(axis=1), pairs.max(axis=1)
     return SMOOTHNESS * np.where(low > 0, low, np.where(high > 0, high, information.max()))
 
 
