@@ -75,6 +75,8 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
             size_px = ()
         if len(size_px) != 2:
             raise InputError("capture_bracket's size_px is (width, height) in whole pixels")
+    if roi is not None and not auto:  # it would be taken and ignored: the plan is the fixed bracket
+        raise InputError("--roi (roi) is the region --auto meters: give --auto (auto=True) with it, or leave it out")
     check_defect_settings(hot_pixel_fraction, exposure_error)  # before the folder is claimed
     chosen = load_profile(profile)
     folder = Path(out)

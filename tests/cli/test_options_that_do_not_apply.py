@@ -67,3 +67,12 @@ def test_reconstruct_refuses_a_tile_below_16_px_before_loading_anything(tmp_path
     with pytest.raises(SystemExit) as stop:  # it was refused after the model loaded, beside a progress bar
         main(["reconstruct", str(tmp_path / "frame.exr"), "--tile", "8", "--out", str(tmp_path / "r")])
     assert stop.value.code == 2 and "--tile: must be at least 16" in capsys.readouterr().err
+
+
+def test_capture_bracket_refuses_a_region_of_interest_without_auto(tmp_path, capsys):
+    """--roi is the region --auto meters; without --auto it was taken and ignored (a fixed bracket, exit 0)."""
+    out = tmp_path / "bracket"
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--size", "64x48",
+                 "--roi", "0,0,32,32", "--out", str(out)]) == 1
+    assert "--roi (roi) is the region --auto meters" in _one_line(capsys)
+    assert not out.exists()
