@@ -111,11 +111,12 @@ def run(arguments: argparse.Namespace) -> int:
                              mirror_check=arguments.mirror_check, partner=partner,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
-        if streaks.warning():
-            warnings.warn(f"{source.name}: {streaks.warning()}")
-        if result.consistency.fallen_back_pixels:
-            print(f"{source.name}: {result.consistency.summary()} (confidence map: "
-                  f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
+        with tqdm.external_write_mode(file=sys.stderr):  # lines of their own, not run on from the progress bar
+            if streaks.warning():
+                warnings.warn(f"{source.name}: {streaks.warning()}")
+            if result.consistency.fallen_back_pixels:
+                print(f"{source.name}: {result.consistency.summary()} (confidence map: "
+                      f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
         exr_path, png_path, confidence_path = output_paths(arguments.out, source)
         attributes = {"source": str(source), "checkpoint": str(model.source),
                       "partner": str(partner.source) if partner is not None else "none",

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -311,3 +313,25 @@ def test_destreak_records_an_angle_only_where_it_removed_streaks_and_refuses_a_d
     capsys.readouterr()
     assert main(["destreak", str(source), "--device", "cuda", "--out", str(tmp_path / "other")]) == 1
     _one_line_error(capsys, "--device cuda applies only to --method network")
+
+
+def test_reconstruct_prints_its_warning_on_a_line_of_its_own(tmp_path):
+    """The clipped-streak warning came out where the progress bar ended ("... 5.26window/s]hdrcam: warning:")."""
+    import torch
+
+    from hdrcam.optics.analytic import star
+    from hdrcam.sensor import fft_convolve
+
+    psf = star(63, points=8)
+    scene = np.full((3, 160, 160), 0.1, np.float32)
+    scene[:, 80:83, 80:83] = 1e4  # its eight streaks clip
+    frame = fft_convolve(torch.from_numpy(scene), torch.from_numpy(psf)).clamp(0, 1).permute(1, 2, 0).numpy()
+    write_exr(tmp_path / "frame.exr", np.ascontiguousarray(frame))
+    write_exr(tmp_path / "psf.exr", np.ascontiguousarray(psf.transpose(1, 2, 0)))
+    command = [sys.executable, "-m", "hdrcam", "reconstruct", str(tmp_path / "frame.exr"), "--psf",
+               str(tmp_path / "psf.exr"), "--no-partner", "--no-mirror-check", "--out", str(tmp_path / "out")]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)  # pytest would keep the warning
+    assert done.returncode == 0, done.stderr
+    error = done.stderr
+    start = error.index("hdrcam: warning: frame.exr:")
+    assert error[start - 1] in "\r\n", repr(error[max(start - 40, 0):start + 30])
