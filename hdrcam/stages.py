@@ -59,7 +59,7 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     from hdrcam.capture.bracket import BracketCapture, BracketPlan
     from hdrcam.capture.manifest import MANIFEST_NAME, load_bracket, sha256_of
     from hdrcam.capture.notches import nearest_shutter
-    from hdrcam.capture.scene import load_scene
+    from hdrcam.capture.scene import load_scene, pinhole_spacing_for
     from hdrcam.capture.simulated import check_defect_settings, simulation_psf
     from hdrcam.errors import InputError, OutputExistsError
     from hdrcam.profiles import load_profile
@@ -104,8 +104,8 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
             raise InputError(f"--size {width}x{height}: LibRaw opens no RAW frame smaller than {SIMULATED_MIN_SIDE_PX} "
                              f"px on a side; use --size {max(width, SIMULATED_MIN_SIDE_PX)}x"
                              f"{max(height, SIMULATED_MIN_SIDE_PX)} or larger")
-        rendered = load_scene(scene, height, width, seed=seed)
         kernel = simulation_psf(chosen, psf)  # the DOE is part of the camera, not of the seed
+        rendered = load_scene(scene, height, width, seed=seed, pinhole_spacing_px=pinhole_spacing_for(kernel.shape[-1]))
     device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
                                     hot_pixel_fraction=hot_pixel_fraction, exposure_error=exposure_error)
     options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed,

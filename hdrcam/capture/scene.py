@@ -27,6 +27,7 @@ SCENE_KINDS = ("point", "pinholes", "night", "flat")
 DEFAULT_PINHOLE_SPACING_PX = 72  # > the simulated profile's 63 px PSF plus an annulus for the background; denser
 # than that costs the fit its background annulus, sparser costs sources: at 96 px (80 sources) blue, whose PSF keeps
 # 75 % of its energy in one pixel sampled at a quarter of the sites, was off by 2.2-3.5 % L1 on two of three seeds
+PINHOLE_MARGIN_PX = DEFAULT_PINHOLE_SPACING_PX - 63  # beyond the PSF: the simulated profile's annulus
 DEFAULT_POINT_POWER = 50.0  # PSF peak ~ half the full well at 1/4000 s with the default reference exposure
 
 
@@ -53,12 +54,14 @@ class Scene:
         return Scene(self.height_px, self.width_px, None, (), f"dark ({self.description})")
 
 
-def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene:
+def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
+               pinhole_spacing_px: int = DEFAULT_PINHOLE_SPACING_PX) -> Scene:
     """``point[:POWER]`` | ``pinholes[:POWER[:SPACING]]`` | ``night`` | ``flat[:LEVEL]`` | an EXR file (scaled to
     cover the sensor, centre crop).
 
-    ``pinholes`` is a pinhole-array calibration target: a grid of equal point sources SPACING pixels apart,
-    each imaged at its own sub-pixel and CFA phase, so together they sample the PSF densely.
+    ``pinholes`` is a pinhole-array calibration target: a grid of equal point sources SPACING pixels apart
+    (default ``pinhole_spacing_px``: pinhole_spacing_for(PSF size) gives the camera's), each imaged at its own
+    sub-pixel and CFA phase, so together they sample the PSF densely.
     """
     check_image_size("the simulated frame", height_px, width_px, SIMULATED_CAMERA_BYTES_PER_PIXEL,
                      "use a smaller --size")
@@ -73,7 +76,7 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
     if kind == "pinholes":
         power_text, _, spacing_text = argument.partition(":")
         power = _number(spec, power_text, DEFAULT_POINT_POWER)
-        spacing = int(_number(spec, spacing_text, DEFAULT_PINHOLE_SPACING_PX))
+        spacing = int(_number(spec, spacing_text, pinhole_spacing_px))
         points = pinhole_grid(height_px, width_px, spacing, power, seed)
         if not points:
             raise InputError(f"scene {spec!r}: no pinhole fits a {width_px} x {height_px} frame {spacing} px apart")
@@ -94,6 +97,14 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0) -> Scene
         raise InputError(f"{path}: the scene has NaN or infinite pixels")
     warn_negative_radiance(path, radiance)
     return Scene(height_px, width_px, _cover(radiance, height_px, width_px), (), f"{path.name}")
+
+
+def pinhole_spacing_for(psf_px: int) -> int:
+    """The default pinhole spacing (px) for a camera whose PSF is ``psf_px`` wide: DEFAULT_PINHOLE_SPACING_PX, or
+    the PSF with the same margin for the background annulus where it is wider (the A7 profile's 255 px PSF:
+    264 px; at 72 px its pinholes were refused as crowded, and the smaller --size the refusal suggested cut the
+    PSF's streaks into sources of their own)."""
+    return max(DEFAULT_PINHOLE_SPACING_PX, psf_px + PINHOLE_MARGIN_PX)
 
 
 def pinhole_grid(height_px: int, width_px: int, spacing_px: int, power: float, seed: int

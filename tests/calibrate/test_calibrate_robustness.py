@@ -81,7 +81,7 @@ def _rigid_grid(folder, monkeypatch, pitch_px: float, offset_px: float = 0.6) ->
     pinholes scene moves each by its own random sub-pixel offset, which hides the problem)."""
     from hdrcam.capture import scene
 
-    def rigid(spec, height_px, width_px, seed=0):
+    def rigid(spec, height_px, width_px, seed=0, pinhole_spacing_px=None):  # load_scene's signature
         points = tuple(scene.PointSource(25 + offset_px + pitch_px * column, 25 + offset_px + pitch_px * row, 50.0)
                        for row in range(4) for column in range(6))
         return scene.Scene(height_px, width_px, None, points, f"rigid pinhole grid {pitch_px} px apart")
