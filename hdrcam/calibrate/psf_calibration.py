@@ -166,12 +166,15 @@ def crowded(sources: list[tuple[int, int]], peaks: list[tuple[int, int]], suppor
 
 
 def _crowding_advice(crowded_sources: dict[tuple[int, int], int], peaks: list[tuple[int, int]], size_px: int) -> str:
-    """Why crowded sources were left out, with the largest odd --size their spacing allows: an odd size s is free
-    of crowding at a spacing d when d >= (s // 2 + WINDOW_MARGIN_PX) + s // 2 + 1 = s + WINDOW_MARGIN_PX."""
+    """Why crowded sources were left out, with the spacing the PSF size needs and the largest odd --size their
+    spacing allows: an odd size s is free of crowding at a spacing d when d >= (s // 2 + WINDOW_MARGIN_PX) + s // 2
+    + 1 = s + WINDOW_MARGIN_PX. The sparser target comes first: a --size smaller than the PSF cuts its light (the
+    A7 profile's 255 px rank-1 PSF at 141 px: its streaks' lobes were found as sources of their own)."""
     spacing = int(np.median(list(crowded_sources.values())))
     largest = spacing - WINDOW_MARGIN_PX
     largest -= 1 - largest % 2  # odd
-    size_advice = f"--size {largest} at most, or a sparser target" if largest >= 3 else "a sparser target"
+    target = f"a target at least {size_px + WINDOW_MARGIN_PX} px apart"
+    size_advice = f"{target}, or --size {largest} if the PSF's light fits in it" if largest >= 3 else target
     return (f"closer to another than a {size_px} px PSF and its window allow (pinholes {spacing} px apart: "
             f"{size_advice})")
 

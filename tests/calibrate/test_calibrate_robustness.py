@@ -165,7 +165,8 @@ def test_pinholes_closer_than_the_window_allows_are_refused_with_the_size_that_f
     code = main(["calibrate", "psf", str(tmp_path / "bracket"), "--size", "25", "--profile", "simulated",
                  "--out", str(tmp_path / "r")])
     _assert_refused(code, capsys, tmp_path / "r", "closer to another than a 25 px PSF and its window allow "
-                    "(pinholes 24 px apart: --size 21 at most, or a sparser target)", recwarn)
+                    "(pinholes 24 px apart: a target at least 27 px apart, or --size 21 if the PSF's light fits in it)",
+                    recwarn)
 
 
 def test_a_sloping_background_is_taken_out_of_each_window_as_a_plane():
