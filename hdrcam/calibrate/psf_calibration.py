@@ -165,7 +165,7 @@ def crowded(sources: list[tuple[int, int]], peaks: list[tuple[int, int]], suppor
     return {sources[index]: int(nearest[index]) for index in np.flatnonzero(nearest < reach_px)}
 
 
-def _crowding_advice(crowded_sources: dict[tuple[int, int], int], peaks: list[tuple[int, int]], size_px: int) -> str:
+def _crowding_advice(crowded_sources: dict[tuple[int, int], int], size_px: int) -> str:
     """Why crowded sources were left out, with the spacing the PSF size needs and the largest odd --size their
     spacing allows: an odd size s is free of crowding at a spacing d when d >= (s // 2 + WINDOW_MARGIN_PX) + s // 2
     + 1 = s + WINDOW_MARGIN_PX. The sparser target comes first: a --size smaller than the PSF cuts its light (the
@@ -235,13 +235,14 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     rejected = edge + clipped + faint + len(crowded_sources)
     if not windows:
         reasons = [f"{count} {reason}" for count, reason in (
-            (len(crowded_sources), _crowding_advice(crowded_sources, peaks, size_px) if crowded_sources else ""),
+            (len(crowded_sources), _crowding_advice(crowded_sources, size_px) if crowded_sources else ""),
             (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
             (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
         spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
         if spots and not clipped:  # sources clipped whole are masked out before detection: say so
             reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
-            rejected += spots if rejected else 0  # "N found - ..." lists them; else "no point source found"
+            if rejected:  # "N found - ..." lists them (with none found: "no point source found ...")
+                rejected += spots
         raise InputError(f"no usable point source: {rejected} found - " + ", ".join(reasons) if rejected else
                          "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
     check_enough_samples(windows, size_px)

@@ -171,7 +171,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     confirmed = np.zeros(clipped.shape, bool)  # ... that also confirms the amount: shape kept
     for crop, own in clusters:
         mine = clipped_channels[crop] & own[..., None]
-        excess = np.where(mine, np.maximum(estimate[crop], 1.0).astype(np.float32) - 1.0, 0.0).astype(np.float32)
+        excess = np.where(mine, output[crop] - 1.0, 0.0).astype(np.float32)  # floored: no other cluster writes here
         region, inner = _grown(crop, 2 * radius, frame.shape[:2])  # light from two PSF radii away can matter
         unclipped = ~clipped_channels[region]
         own_light = np.where(~unclipped, np.clip(estimate[region], 0.0, 1.0), 0.0).astype(np.float32)  # B
