@@ -233,13 +233,14 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
              learning_rate: float | None = None, seed: int | None = None, checkpoint_every: int | None = None,
              precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
              vgg_weights: str | Path | None = None, random_vgg: bool = False, device: str = "auto",
-             quiet: bool = False, data_workers: int | None = None, partner: bool = True) -> dict:
+             quiet: bool = False, data_workers: int | None = None, partner: bool | None = None) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
     learning rate (2e-4: the network already works). Writes the run folder ``out`` (model.pt at the end).
     ``psf`` may be None with ``resume``: the run's own PSF file.
 
-    ``partner`` (default true): when the starting checkpoint NAME.pt has a partner NAME-partner.pt beside it (a
+    ``partner`` (None: true for a new run, a resumed run's own choice): when the starting checkpoint NAME.pt has
+    a partner NAME-partner.pt beside it (a
     second network trained behind the same PSF, which reconstruct runs with it; the shipped checkpoint has one),
     the partner is fine-tuned next, from its own weights with the same options (PSF, data, steps, batch, crop,
     learning rate, precision; seed + 1, so that it draws other batches than its model), in the run folder
@@ -248,7 +249,8 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     its checkpoint is refused (InputError) before any training; a new run never replaces an existing
     model-partner.pt or partner run. ``resume`` continues each run folder on its own: a run stopped while its
     partner trained continues the partner (from step 0 when it had saved no checkpoint yet) without training
-    the finished main network again; give ``partner=False`` again to resume a run made without one. Returns
+    the finished main network again, and follows the choice the run was started with (InputError for the other
+    one; runs saved before the choice was recorded train a partner unless ``partner`` is False). Returns
     the main run's last logged step (losses, seconds; {} when the main run had already finished);
     ``hdrcam.stages.finetuned_partner(out)`` names the partner written."""
     from hdrcam.errors import InputError
@@ -257,6 +259,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     from hdrcam.train.design import RUN_FILES
 
     out = Path(out)
+    partner = _partner_choice(out, partner) if resume else partner is not False
     if psf is not None and not isinstance(psf, (str, Path)):  # a run records its PSF's path, to resume behind it
         raise InputError(f"finetune's psf is a file, not a {type(psf).__name__}: give the psf.exr `hdrcam calibrate "
                          "psf` writes (calibrate_psf returns the PSF in memory only)")
@@ -288,7 +291,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
         began = _run_start(saved_config) if not checkpoint else None
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
-               "init_checkpoint": str(start), "learning_rate": 2e-4}
+               "init_checkpoint": str(start), "learning_rate": 2e-4, "finetune_partner": partner}
     options = _given(data=recorded_data(data), steps=steps, batch=batch, crop_px=crop_px,
                      learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
                      channels_last=channels_last, psf=recorded_file(psf))
@@ -303,7 +306,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
         trained = read_run_config(out / "config.json")
         new_partner_run = {**new_run, **{field: trained[field] for field in PARTNER_SHARES if field in trained},
                            "preset": partner_state["preset"], "profile": partner_state["profile"],
-                           "init_checkpoint": str(partner_start),
+                           "init_checkpoint": str(partner_start), "finetune_partner": None,
                            "seed": (trained.get("seed", _main_seed(seed, saved_config)) + 1) % 2 ** 32}  # other batches
         if resume:
             _forget_unsaved_run(partner_run)
@@ -340,6 +343,22 @@ def _saved_config(out: Path) -> dict | None:
     if saved.is_file():
         return read_checkpoint(saved)["config"]
     return read_run_config(claimed) if claimed.is_file() else None
+
+
+def _partner_choice(out: Path, given: bool | None) -> bool:
+    """Whether the resumed finetune run in ``out`` fine-tunes a partner: the choice it was started with
+    (``given`` None, or the same), True for a run saved before the choice was recorded unless ``given`` is
+    False; InputError when ``given`` contradicts the recorded choice."""
+    from hdrcam.errors import InputError
+
+    recorded = (_saved_config(out) or {}).get("finetune_partner")
+    if recorded is None:
+        return given is not False
+    if given is not None and given != recorded:
+        started = "without --no-partner (it fine-tunes its partner)" if recorded else "with --no-partner"
+        raise InputError(f"finetune --resume: {out} was started {started}; resume it as it was started, or choose "
+                         "another --out")
+    return recorded
 
 
 def _run_psf(out: Path) -> str:

@@ -68,13 +68,13 @@ def register(commands) -> None:
     finetune.add_argument("--checkpoint", type=Path, default=None, help="start from this (default: the shipped one)")
     finetune.add_argument("--psf", type=Path, default=None,
                           help="PSF EXR, e.g. calibration/NAME/psf.exr (with --resume: the run's own by default)")
-    finetune.add_argument("--no-partner", dest="partner", action="store_false",
+    finetune.add_argument("--no-partner", dest="partner", action="store_false", default=None,
                           help="fine-tune the checkpoint alone. By default, when it has a partner (NAME-partner.pt "
                                "beside NAME.pt: a second network trained behind the same PSF, which reconstruct "
                                "runs with it and keeps what both paint; the shipped checkpoint has one), the "
                                "partner is fine-tuned next with the same options in OUT/partner and written to "
-                               "OUT/model-partner.pt (twice the training time). --resume of a run made with "
-                               "--no-partner needs it again")
+                               "OUT/model-partner.pt (twice the training time). --resume follows the choice the "
+                               "run was started with")
     _training_options(finetune, 200)
     finetune.set_defaults(run=run_finetune)
 
@@ -111,7 +111,7 @@ def run_finetune(arguments: argparse.Namespace) -> int:
 
     def partner_summary() -> dict:
         """The partner fine-tuned in OUT/partner and where its network was written; null without one."""
-        written = finetuned_partner(arguments.out) if arguments.partner else None
+        written = finetuned_partner(arguments.out)
         return {"partner": {"run": str(arguments.out / PARTNER_RUN), "model": str(written)} if written else None}
 
     return _train(finetune, arguments, partner_summary, psf=arguments.psf, checkpoint=arguments.checkpoint,

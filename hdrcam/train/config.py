@@ -32,6 +32,8 @@ class TrainConfig:
     init_checkpoint: str | None = None  # start the network from this checkpoint (fine-tuning)
     precision: str = "float32"  # the network's forward: float32, or autocast to bfloat16 / float16 (CUDA)
     channels_last: bool = False  # NHWC network weights and input (faster convolutions on CUDA tensor cores)
+    finetune_partner: bool | None = None  # finetune: the partner network is fine-tuned after this run (None:
+    # not a finetune run, or one saved before the choice was recorded; such runs trained a partner unless told not to)
     weights: LossWeights = dataclasses.field(default_factory=LossWeights)
 
     def __post_init__(self) -> None:

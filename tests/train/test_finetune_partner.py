@@ -67,6 +67,23 @@ def test_the_summary_names_the_partner_and_no_partner_trains_none(tmp_path, caps
     assert not (out / "model-partner.pt").exists() and not (out / "partner").exists()
 
 
+def test_a_resume_follows_the_partner_choice_the_run_was_started_with(tmp_path, capsys):
+    """A run made with --no-partner, resumed without it, trained a partner too (twice the time, unasked); one
+    made with its partner, resumed with --no-partner, is told it was started otherwise."""
+    alone, paired = tmp_path / "alone", tmp_path / "paired"
+    assert main(_finetune(alone, "--no-partner")) == 0
+    assert main(["finetune", "--out", str(alone), "--resume", "--steps", "3"]) == 0
+    assert _summary(capsys)["partner"] is None
+    assert read_checkpoint(alone / "model.pt")["step"] == 3
+    assert not (alone / "model-partner.pt").exists() and not (alone / "partner").exists()
+    assert main(_finetune(paired)) == 0
+    capsys.readouterr()
+    assert main(["finetune", "--out", str(paired), "--resume", "--steps", "3", "--no-partner"]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "was started without --no-partner" in error, error
+    assert read_checkpoint(paired / "model.pt")["step"] == 2  # nothing trained by the refused call
+
+
 def test_a_partner_behind_another_psf_is_refused_before_any_training(tmp_path, capsys):
     start = tmp_path / "start.pt"
     shutil.copyfile(SHIPPED_CHECKPOINT, start)
