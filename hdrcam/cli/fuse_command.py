@@ -1,7 +1,7 @@
 """``hdrcam fuse BRACKET --out X.exr``: merge a RAW bracket into linear HDR (EXR) with a preview PNG.
 
-The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, about a quarter
-smaller for noisy data and several seconds slower at 24 MP), in the sensor's orientation (its ``orientation``
+The EXR is float32 (``--half``: 16-bit), uncompressed unless ``--compression zip`` (lossless, 15-19 %
+smaller for noisy data and 1-2.5 s slower at 18-24 MP), in the sensor's orientation (its ``orientation``
 attribute: the EXIF code that displays it upright); the preview is tone-mapped from the image reduced to at
 most 2048 px (PREVIEW_SIDE_PX) on its longer side and turned upright. The preview is made on a second thread
 while the EXR is written (OpenEXR releases the GIL); the two are published together once both are written: a
@@ -33,7 +33,7 @@ def register(commands) -> None:
     parser.add_argument("--half", action="store_true",
                         help="write RGB as half floats (refused above 65504); variances stay float32")
     parser.add_argument("--compression", choices=("none", "zip"), default="none",
-                        help="EXR compression (default none: fastest; zip: lossless, about a quarter smaller, slower)")
+                        help="EXR compression (default none: fastest; zip: lossless, 15-19 %% smaller, slower)")
     parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--demosaic", choices=FLOAT_METHODS, default=DEFAULT_METHOD,
                         help=f"demosaicing (default {DEFAULT_METHOD}: fast; menon2007: sharper edges, slower)")
