@@ -16,14 +16,15 @@ failing with EIO, as before the kernel sees the device go), a response for the w
 overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, I/O errors on the bulk-in and interrupt
 pipes, images of whole USB packets (ZLPs),
 properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
-Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet
-per read, a header sent alone, a late response of an earlier transaction, a malformed event packet. Sony
-details libgphoto2 documents: 0x9207 +1 moves the shutter one notch shorter (libgphoto2 config.c
-_put_Sony_ShutterSpeed sends 0x01 when the target is shorter; ``reversed_shutter_steps`` flips it), 0xD215
-counts images without the 0x8000 flag while the body is still writing ("also turns to 1") and may read
-0x8000 alone either for "none" (camera_wait_for_event) or for "ready" (camera_sony_capture), 0xD213 = 3 as
-focus found (RX0), 0x9202 answers a version and u32-counted code lists (ptp_sony_get_vendorpropcodes), and
-descriptors with a second enumeration list (ptp_unpack_Sony_DPD, 2024 bodies).
+Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet per
+read, a header sent alone (and a body that then takes the host's data phases only split so), a late response of
+an earlier transaction, a malformed event packet. Sony details libgphoto2 documents: 0x9207 +1 moves the shutter
+one notch shorter (libgphoto2 config.c _put_Sony_ShutterSpeed sends 0x01 when the target is shorter;
+``reversed_shutter_steps`` flips it), 0xD215 counts images without the 0x8000 flag while the body is still
+writing ("also turns to 1") and may read 0x8000 alone either for "none" (camera_wait_for_event) or for "ready"
+(camera_sony_capture), 0xD213 = 3 as focus found (RX0), 0x9202 answers a version and u32-counted code lists
+(ptp_sony_get_vendorpropcodes), and descriptors with a second enumeration list (ptp_unpack_Sony_DPD, 2024
+bodies).
 The emulator serves DNG files (format code 0xB101 like the A7's ARW).
 """
 
@@ -46,7 +47,7 @@ from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSUR
                                       SONY_RAW_FORMAT, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, ClassRequest,
                                       STARTUP_WAIT_MODELS, STARTUP_WAIT_S, ContainerType, DataType, Event, Operation,
                                       Property, Response)
-from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
+from hdrcam.capture.ptp.container import HEADER_SIZE, Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
                                          PropertyDescriptor, Writer, pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
@@ -133,6 +134,9 @@ class Faults:
     coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
     max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
     split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
+    split_header_out: bool = False  # the body takes a host's data phase only with its 12-byte header in a transfer
+    # of its own, then the payload (what libgphoto2 usb.c ptp_usb_senddata sends once ptp_usb_getdata saw the body
+    # split a header: params->split_header_data); a header sent together with its payload is not read
     unknown_length_objects: bool = False  # GetObject's data container says length 0xFFFFFFFF (size not known in
     # advance; libgphoto2 usb.c ptp_usb_getdata reads it until a short packet)
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
@@ -147,6 +151,14 @@ class Faults:
     # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
     session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
     # body still holds for an earlier host; library.c camera_init tries the next ids)
+
+
+def _is_split_data_header(transfer: bytes) -> bool:
+    """Whether ``transfer`` is the 12-byte header alone of a data container that carries a payload."""
+    if len(transfer) != HEADER_SIZE:
+        return False
+    length, kind = struct.unpack_from("<IH", transfer)
+    return kind == ContainerType.DATA and length > HEADER_SIZE
 
 
 class _InPipe:
@@ -207,6 +219,7 @@ class EmulatedSonyA7:
         self.lens_covered = False
         self.priority_mode = 0  # 0xD25A: 0 camera, 1 application (set by the host with 0x9205)
         self._out_transfer = bytearray()
+        self._out_header = b""  # a data container's header that came in a transfer of its own
         self._awaiting_data: Container | None = None
         self._reset_state()
         self._handshake_done = False
@@ -236,6 +249,14 @@ class EmulatedSonyA7:
         transfer, self._out_transfer = bytes(self._out_transfer), bytearray()
         if not transfer:
             return
+        header, self._out_header = self._out_header, b""
+        if not header and _is_split_data_header(transfer):
+            self._out_header = transfer  # its payload follows as the next transfer (usb.c split_header_data)
+            return
+        if self.faults.split_header_out and not header and len(transfer) > HEADER_SIZE and \
+                struct.unpack_from("<H", transfer, 4)[0] == ContainerType.DATA:
+            return  # a header sent with its payload: this body does not read it (the host times out)
+        transfer = header + transfer
         try:
             container = Container.unpack(transfer)
         except ContainerError:
@@ -316,6 +337,7 @@ class EmulatedSonyA7:
         if request == ClassRequest.CANCEL:
             self.in_pipe.clear()
             self._awaiting_data, self._out_transfer, self._downloading = None, bytearray(), False
+            self._out_header = b""
             return b""
         if request == ClassRequest.DEVICE_RESET:
             self._reset_state()

@@ -11,7 +11,7 @@ import pytest
 
 from hdrcam.capture.camera import CameraError
 from hdrcam.capture.ptp.codes import STARTUP_WAIT_S, DataType, Operation, Property
-from hdrcam.capture.ptp.container import data, response
+from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
 from hdrcam.capture.ptp.transport import UsbTransport
 from tests.capture.helpers import emulated_a7 as emulated
@@ -383,3 +383,40 @@ def test_focus_modes_are_named_as_libgphoto2_names_them(value, name):
     from hdrcam.capture.ptp.codes import FOCUS_MODE_NAMES
 
     assert FOCUS_MODE_NAMES[value] == name
+
+
+def test_a_body_that_splits_its_headers_gets_the_hosts_data_phases_split_too(tmp_path):
+    """usb.c ptp_usb_getdata sets split_header_data when a data container's first read is its 12-byte header alone;
+    ptp_usb_senddata then writes every data phase as that header alone, then the payload. A body that needs it
+    (Faults.split_header_out) never read hdrcam's header-with-payload writes: no priority mode, no step, no press."""
+    camera, body = emulated(split_header=True, split_header_out=True)
+    writes = recording(body)
+    with camera:
+        assert body.priority_mode == 1
+        camera.capture(tmp_path, "f")
+    assert writes[6:9] == [hex_bytes(h) for h in (
+        "10000000 0100 0592 06000000 5ad20000", "0d000000 0200 0592 06000000", "01")]
+    assert body.downloads == 1 and body.premature_requests == 0
+
+
+def test_a_body_sending_whole_containers_gets_whole_data_phases(tmp_path):
+    """Without a split header from the body, a data phase stays one transfer (ptp_usb_senddata's default)."""
+    camera, body = emulated()
+    writes = recording(body)
+    with camera:
+        pass
+    assert writes[7] == hex_bytes("0d000000 0200 0592 06000000 01")
+
+
+@pytest.mark.parametrize("payload_bytes, zlp", [(1, False), (512, True), (1024, True), (500, False)])
+def test_a_split_data_phase_ends_with_a_zlp_when_its_payload_is_whole_packets(payload_bytes, zlp):
+    """ptp_usb_senddata, split: the header alone (a short packet ends it), then the payload, then a ZLP when the
+    payload is a multiple of wMaxPacketSize (``written`` counts the payload only)."""
+    camera, body = emulated(split_header=True)
+    with camera:
+        writes = recording(body)
+        assert camera.session.transport.split_header_data
+        camera.session.transport.send(data(Operation.SONY_SET_CONTROL_DEVICE_B, 99, bytes(payload_bytes)), 1000)
+        sent = writes[:]
+    header = struct.pack("<IHHI", HEADER_SIZE + payload_bytes, 2, Operation.SONY_SET_CONTROL_DEVICE_B, 99)
+    assert sent == [header, bytes(payload_bytes)] + ([b""] if zlp else [])

@@ -6,7 +6,9 @@ libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet'
 container is read until its length field is satisfied however short each read is, bytes read past its end (a
 device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
 zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
-known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. Events arrive on the
+known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. A device that sends a data
+container's 12-byte header in a transfer of its own gets the host's data phases split the same way from then on
+(ptp_usb_getdata sets params->split_header_data, ptp_usb_senddata honours it). Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
 become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO before any byte of a container arrived: a transfer
@@ -89,6 +91,7 @@ class UsbTransport:
         if self.bulk_in is None or self.bulk_out is None:
             raise CameraError("the PTP interface lacks its bulk endpoints")
         self._pending = b""  # bytes read past the end of the last container, the start of the next one
+        self.split_header_data = False  # the device sent a data container's header alone: split ours too
 
     def _detach_kernel_driver(self) -> None:
         try:
@@ -106,11 +109,18 @@ class UsbTransport:
 
     # -- bulk ------------------------------------------------------------------------------------------------
     def send(self, container: Container, timeout_ms: int) -> None:
-        """Write one container, then a ZLP if its length is a multiple of the packet size."""
+        """Write one container, then a ZLP if its length is a multiple of the packet size. Once the device has sent
+        a data container's 12-byte header alone (``split_header_data``), a data container goes out as its header
+        alone, then its payload (ZLP after the payload when that is whole packets), as libgphoto2's
+        ptp_usb_senddata writes to such a device."""
         packet = container.pack()
+        transfers = [packet]
+        if self.split_header_data and container.kind == ContainerType.DATA and len(packet) > HEADER_SIZE:
+            transfers = [packet[:HEADER_SIZE], packet[HEADER_SIZE:]]
         with _usb_errors(self, "sending", timeout_ms):
-            self.bulk_out.write(packet, timeout_ms)
-            if len(packet) % self.bulk_out.wMaxPacketSize == 0:
+            for transfer in transfers:
+                self.bulk_out.write(transfer, timeout_ms)
+            if len(transfers[-1]) % self.bulk_out.wMaxPacketSize == 0:
                 self.bulk_out.write(b"", timeout_ms)
 
     def receive(self, timeout_ms: int) -> Container:
@@ -136,6 +146,8 @@ class UsbTransport:
                 chunk = self._read(first_read, timeout_ms)
                 buffer += chunk
             length, kind = parse_header(buffer)[:2]
+            if kind == ContainerType.DATA and length > HEADER_SIZE and len(chunk) == len(buffer) == HEADER_SIZE:
+                self.split_header_data = True  # ptp_usb_getdata's autodetection of split header/data devices
             if length == UNKNOWN_LENGTH and kind == ContainerType.DATA:
                 ended = len(chunk) % packet_size != 0 and len(buffer) != HEADER_SIZE
                 while not ended:
