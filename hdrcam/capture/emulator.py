@@ -18,13 +18,13 @@ pipes, images of whole USB packets (ZLPs),
 properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
 Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet per
 read, a header sent alone (and a body that then takes the host's data phases only split so), a late response of
-an earlier transaction, a malformed event packet. Sony details libgphoto2 documents: 0x9207 +1 moves the shutter
-one notch shorter (libgphoto2 config.c _put_Sony_ShutterSpeed sends 0x01 when the target is shorter;
-``reversed_shutter_steps`` flips it), 0xD215 counts images without the 0x8000 flag while the body is still
-writing ("also turns to 1") and may read 0x8000 alone either for "none" (camera_wait_for_event) or for "ready"
-(camera_sony_capture), 0xD213 = 3 as focus found (RX0), 0x9202 answers a version and u32-counted code lists
-(ptp_sony_get_vendorpropcodes), and descriptors with a second enumeration list (ptp_unpack_Sony_DPD, 2024
-bodies).
+an earlier transaction, a malformed event packet, an event split over two interrupt transfers. Sony details
+libgphoto2 documents: 0x9207 +1 moves the shutter one notch shorter (libgphoto2 config.c _put_Sony_ShutterSpeed
+sends 0x01 when the target is shorter; ``reversed_shutter_steps`` flips it), 0xD215 counts images without the
+0x8000 flag while the body is still writing ("also turns to 1") and may read 0x8000 alone either for "none"
+(camera_wait_for_event) or for "ready" (camera_sony_capture), 0xD213 = 3 as focus found (RX0), 0x9202 answers a
+version and u32-counted code lists (ptp_sony_get_vendorpropcodes), and descriptors with a second enumeration list
+(ptp_unpack_Sony_DPD, 2024 bodies).
 The emulator serves DNG files (format code 0xB101 like the A7's ARW).
 """
 
@@ -141,6 +141,8 @@ class Faults:
     # advance; libgphoto2 usb.c ptp_usb_getdata reads it until a short packet)
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
     malformed_event: bool = False  # a 4-parameter event packet at the next full press
+    split_events: bool = False  # each event goes out as two interrupt transfers, its 12-byte header then its
+    # parameters (libgphoto2 usb.c ptp_usb_event reads on while the container is longer than what it read)
     damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
@@ -304,7 +306,7 @@ class EmulatedSonyA7:
                 self._image, self._image_format, self._image_name = self._queued_images.pop(0)
             self.downloads += 1
             if self.faults.stale_object_added:
-                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+                self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         return count
 
     def clear_halt(self, endpoint: int) -> None:
@@ -331,6 +333,13 @@ class EmulatedSonyA7:
         packet = self.events.popleft()
         memoryview(buffer).cast("B")[:len(packet)] = packet
         return len(packet)
+
+    def _queue_event(self, packet: bytes) -> None:
+        """Queue an event container for the interrupt pipe: one transfer, or two with Faults.split_events."""
+        if self.faults.split_events and len(packet) > HEADER_SIZE:
+            self.events.extend((packet[:HEADER_SIZE], packet[HEADER_SIZE:]))
+        else:
+            self.events.append(packet)
 
     def class_request(self, request: int, payload: bytes) -> bytes:
         self._require_connected()
@@ -541,7 +550,7 @@ class EmulatedSonyA7:
         now = self.clock.monotonic()
         if self._early_event_s is not None and now >= self._early_event_s:
             self._early_event_s = None
-            self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+            self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         for step in [s for s in self._steps if s[0] <= now]:
             self._steps.remove(step)
             _, code, delta = step
@@ -552,11 +561,11 @@ class EmulatedSonyA7:
                 offered = self._offered_isos()
                 index = min(max(offered.index(int(self.camera.settings().iso)) + delta, 0), len(offered) - 1)
                 self.camera.set_iso(offered[index])
-            self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
+            self._queue_event(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
         if self._image_due_s is not None and now >= self._image_due_s:
             self._image_due_s = None
             if not self.faults.early_object_added:
-                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+                self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
 
     def _offered_isos(self) -> tuple[int, ...]:
         """The ISOs this body steps through (Faults.iso_max)."""

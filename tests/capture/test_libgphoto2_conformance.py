@@ -420,3 +420,24 @@ def test_a_split_data_phase_ends_with_a_zlp_when_its_payload_is_whole_packets(pa
         sent = writes[:]
     header = struct.pack("<IHHI", HEADER_SIZE + payload_bytes, 2, Operation.SONY_SET_CONTROL_DEVICE_B, 99)
     assert sent == [header, bytes(payload_bytes)] + ([b""] if zlp else [])
+
+
+def test_an_event_split_over_two_interrupt_transfers_is_read_whole():
+    """usb.c ptp_usb_event: while an event container is longer than what was read, it reads on (the "incremental
+    read"); the whole ObjectAdded comes back, and the pipe is left at the next event."""
+    camera, body = emulated(split_events=True)
+    with camera:
+        body._queue_event(struct.pack("<IHHII", 16, 4, 0xC201, 0, 0xFFFFC001))
+        body._queue_event(struct.pack("<IHHII", 16, 4, 0xC203, 0, 0xD20D))
+        first, second = camera.session.transport.read_event(100), camera.session.transport.read_event(100)
+    assert (first.code, first.params) == (0xC201, (0xFFFFC001,))
+    assert (second.code, second.params) == (0xC203, (0xD20D,))
+
+
+def test_a_body_announcing_images_by_split_object_added_events_is_downloaded(tmp_path):
+    """An a58-style body (0xD215 stays 0, ObjectAdded alone says the image is there) whose events come in two
+    interrupt transfers: the ObjectAdded must still be seen, or the shot is lost after the 35 s wait."""
+    camera, body = emulated(pending_images_unreported=True, split_events=True)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.raw.bayer_dn.shape == (48, 64) and body.premature_requests == 0 and body.downloads == 1

@@ -39,6 +39,8 @@ READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
 FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
 EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
 UNKNOWN_LENGTH = 0xFFFFFFFF  # a data container's length field when the device does not know its size
+EVENT_MAX_BYTES = 24  # an event container: header and 3 parameters (libgphoto2's PTPUSBEventContainer)
+EVENT_REST_TIMEOUT_MS = 150  # for the rest of an event sent in several transfers (libgphoto2's PTP2_FAST_TIMEOUT)
 PROBE_TIMEOUT_MS = 2000  # the status request asking, after an I/O error, whether the device is still there
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
@@ -179,26 +181,39 @@ class UsbTransport:
     def read_event(self, timeout_ms: int) -> Container | None:
         """One event container, or None if none arrives within the timeout or the packet is not a valid event
         (events only wake waits up; libgphoto2's ptp_usb_event reads at most 24 bytes and never fails a
-        capture on a bad one). An I/O error with the device still there is None too, after clearing the
-        interrupt endpoint's halt, as libgphoto2's usb.c clears the IN endpoint's halt after GP_ERROR_IO_READ;
-        one with the device gone is ``Disconnected``."""
+        capture on a bad one). An event container longer than its first transfer is completed from the next
+        ones, EVENT_REST_TIMEOUT_MS each, as ptp_usb_event's "incremental read" does. An I/O error with the
+        device still there is None too, after clearing the interrupt endpoint's halt, as libgphoto2's usb.c
+        clears the IN endpoint's halt after GP_ERROR_IO_READ; one with the device gone is ``Disconnected``."""
         if self.interrupt_in is None:
             return None
-        try:
-            packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
-        except usb.core.USBError as error:
-            translated = self._translate(error, "reading events", timeout_ms)
-            if isinstance(translated, TransportTimeout):
-                return None
-            if error.errno == errno.EIO and isinstance(translated, Stalled):
-                with contextlib.suppress(usb.core.USBError):
-                    self.device.clear_halt(self.interrupt_in)
-                return None
-            raise translated from None
+        packet = self._read_interrupt(timeout_ms)
+        if len(packet) >= 8:  # usb.c: an event longer than what was read is read on, to 24 bytes at most
+            length, kind = struct.unpack_from("<IH", packet)
+            while kind == ContainerType.EVENT and len(packet) < min(length, EVENT_MAX_BYTES):
+                rest = self._read_interrupt(EVENT_REST_TIMEOUT_MS)
+                if not rest:
+                    break
+                packet += rest
         try:
             return Container.unpack(packet[:parse_header(packet)[0]])
         except ContainerError:
             return None
+
+    def _read_interrupt(self, timeout_ms: int) -> bytes:
+        """One interrupt-in transfer; empty on a timeout, or on an I/O error with the device still there (after
+        clearing the endpoint's halt); ``Disconnected`` with the device gone."""
+        try:
+            return bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, EVENT_MAX_BYTES), timeout_ms))
+        except usb.core.USBError as error:
+            translated = self._translate(error, "reading events", timeout_ms)
+            if isinstance(translated, TransportTimeout):
+                return b""
+            if error.errno == errno.EIO and isinstance(translated, Stalled):
+                with contextlib.suppress(usb.core.USBError):
+                    self.device.clear_halt(self.interrupt_in)
+                return b""
+            raise translated from None
 
     # -- control (class requests) ---------------------------------------------------------------------------
     def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
