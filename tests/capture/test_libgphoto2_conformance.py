@@ -10,6 +10,7 @@ import struct
 import pytest
 
 from hdrcam.capture.camera import CameraError
+from hdrcam.capture.emulator import Latencies
 from hdrcam.capture.ptp.codes import STARTUP_WAIT_S, DataType, Operation, Property
 from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
@@ -441,3 +442,23 @@ def test_a_body_announcing_images_by_split_object_added_events_is_downloaded(tmp
     with camera:
         frame = camera.capture(tmp_path, "f")
     assert frame.raw.bayer_dn.shape == (48, 64) and body.premature_requests == 0 and body.downloads == 1
+
+
+def test_a_body_announcing_images_only_by_object_added_is_not_waited_on_for_35_s(tmp_path):
+    """camera_sony_capture ends its wait at the ObjectAdded; an a58-style body whose 0xD215 stays 0 took 35 s a
+    frame (the whole timeout) before 0xFFFFC001 was asked for. Asked for once 0xD215 stayed 0 for 1 s after it."""
+    camera, body = emulated(pending_images_unreported=True)
+    with camera:
+        started = body.clock.monotonic()
+        camera.capture(tmp_path, "f")
+        took_s = body.clock.monotonic() - started
+    assert took_s < 5.0 and body.premature_requests == 0 and body.downloads == 1
+
+
+def test_an_object_added_with_0xd215_counting_is_not_taken_for_an_unreported_image(tmp_path):
+    """A body that counts its image in 0xD215 while writing (no flag: "also turns to 1") and sends ObjectAdded
+    early is still waited on until 0xD215 says ready, however long the writing takes."""
+    camera, body = emulated(Latencies(image_ready_s=6.0), early_object_added=True)
+    with camera:
+        camera.capture(tmp_path, "f")
+    assert body.premature_requests == 0 and body.downloads == 1
