@@ -94,6 +94,8 @@ class Faults:
 
     busy: int = 0  # answer the next N operations (after the handshake) with DeviceBusy
     silent_operation: int | None = None  # never answer the next command with this code
+    slow_operation: int | None = None  # answer the next command with this code only after slow_answer_s (library.c
+    slow_answer_s: float = 15.0  # camera_init: "We have cameras where a response takes 15 seconds(!)")
     disconnect_during_download: bool = False  # unplug after the first chunk of the next GetObject
     disconnect_after_downloads: int | None = None  # unplug mid-download once this many images were downloaded
     disconnect_waiting_for_image: bool = False  # unplug at the first event read after the shutter release
@@ -222,6 +224,8 @@ class EmulatedSonyA7:
         self.priority_mode = 0  # 0xD25A: 0 camera, 1 application (set by the host with 0x9205)
         self._out_transfer = bytearray()
         self._out_header = b""  # a data container's header that came in a transfer of its own
+        self._answer_due_s: float | None = None  # when a slow answer (Faults.slow_operation) may be read
+        self.read_timeout_ms = 0  # the timeout of the bulk-in read under way (ms)
         self._awaiting_data: Container | None = None
         self._reset_state()
         self._handshake_done = False
@@ -276,7 +280,15 @@ class EmulatedSonyA7:
         self._answer(container, None)
 
     def bulk_in(self, buffer) -> int:
+        """A bulk-in read into ``buffer`` (bytes copied); an answer not yet due (Faults.slow_operation) arrives
+        within a read whose timeout (``read_timeout_ms``, set by the backend) reaches it, else the read times out."""
         self._require_connected()
+        if self._answer_due_s is not None:
+            wait_s = self._answer_due_s - self.clock.monotonic()
+            if wait_s > self.read_timeout_ms / 1000:
+                raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
+            self.clock.sleep(wait_s)
+            self._answer_due_s = None
         self._advance()
         if self.faults.max_read_bytes:
             buffer = memoryview(buffer).cast("B")[:self.faults.max_read_bytes]
@@ -346,7 +358,7 @@ class EmulatedSonyA7:
         if request == ClassRequest.CANCEL:
             self.in_pipe.clear()
             self._awaiting_data, self._out_transfer, self._downloading = None, bytearray(), False
-            self._out_header = b""
+            self._out_header, self._answer_due_s = b"", None
             return b""
         if request == ClassRequest.DEVICE_RESET:
             self._reset_state()
@@ -374,6 +386,8 @@ class EmulatedSonyA7:
         if faults.silent_operation == code:
             faults.silent_operation = None
             return
+        if faults.slow_operation == code:
+            faults.slow_operation, self._answer_due_s = None, self.clock.monotonic() + faults.slow_answer_s
         if faults.io_error_operation == code:
             faults.io_error_operation, self._io_error_due = None, True
         if faults.io_error_mid_data_operation == code:
@@ -696,6 +710,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         return len(data)
 
     def bulk_read(self, dev_handle, ep, intf, buff, timeout):
+        self.camera.read_timeout_ms = timeout
         return self._read(self.camera.bulk_in, buff, timeout)
 
     def intr_read(self, dev_handle, ep, intf, buff, timeout):
