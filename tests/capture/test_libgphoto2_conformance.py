@@ -237,7 +237,7 @@ class _ScriptedBulkIn:
 
 def test_a_container_shorter_than_its_length_field_is_reported_at_once():
     """A data container 4 bytes short ends in a short packet: one line naming the sizes, not a read that runs
-    on into the response and times out (3 x 10 s for a read-only operation)."""
+    on into the response and times out (3 x 20 s for a read-only operation)."""
     transport = object.__new__(UsbTransport)
     transport.bulk_in, transport._pending = _ScriptedBulkIn([data(0x1008, 5, bytes(1000)).pack()[:-4],
                                                              response(0x2001, 5).pack()]), b""
