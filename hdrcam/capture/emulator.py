@@ -148,6 +148,8 @@ class Faults:
     damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
+    not_pc_remote: bool = False  # USB Connection not on PC Remote: DeviceInfo lists no Sony operation (0x92xx) and
+    # each is answered OperationNotSupported (library.c fixup_cached_deviceinfo then skips the SDIO handshake)
     lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
     device_info_strings: int = 4  # DeviceInfo's trailing strings sent (Manufacturer, Model, DeviceVersion,
     # SerialNumber, in that order): optional to libgphoto2's ptp_unpack_DI
@@ -406,7 +408,7 @@ class EmulatedSonyA7:
             self._send(response(Response.SESSION_NOT_OPEN, transaction_id))
             return
         handler = getattr(self, f"_op_{code:04x}", None)
-        if handler is None:
+        if handler is None or (faults.not_pc_remote and code >> 12 == 9):
             self._send(response(Response.OPERATION_NOT_SUPPORTED, transaction_id))
             return
         outcome = handler(request, payload)
@@ -443,8 +445,9 @@ class EmulatedSonyA7:
 
     def _op_1001(self, request, payload):  # GetDeviceInfo
         texts = ("Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
+        operations = tuple(sorted(code for code in Operation if not (self.faults.not_pc_remote and code >> 12 == 9)))
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
-                          tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
+                          operations, tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
                           (SONY_RAW_FORMAT,), *texts)
         packed = info.pack()
         left_out = sum(len(Writer().string(text).bytes()) for text in texts[self.faults.device_info_strings:])

@@ -1,8 +1,9 @@
 """``--camera usb``: a Sony A7 in PC-remote mode over PTP/USB, with Sony's SDIO extension (REFERENCE.md sec. 4).
 
-Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo (vendor extension 0x11),
-the SDIO handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every
-property descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
+Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo (vendor extension 0x11, and
+0x9202 among its operations, without which libgphoto2 skips the handshake: no PC Remote mode), the SDIO
+handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every property
+descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
 stepped one notch at a time with 0x9207; each step is polled through 0x9209 until the value lands, and an
 overshoot is stepped back. An empty 0x9202 answer is asked again (Sony's PTP documentation says to retry;
 the body is still starting its PC-remote mode); if it stays empty the handshake goes on with the version
@@ -202,6 +203,9 @@ class SonyA7Camera:
         self.model = f"{info.manufacturer} {info.model}".strip() or self.model  # both optional (ptp_unpack_DI)
         self.model_code = info.model.strip()
         self.firmware = info.device_version
+        if Operation.SONY_GET_SDIO_EXT_DEVICE_INFO not in info.operations:  # library.c fixup_cached_deviceinfo
+            raise CameraError(f"{self.model} offers no remote control (its operations lack Sony's 0x9202): set USB "
+                              "Connection to 'PC Remote' in the camera's menu, then reconnect the cable")
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
         session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
         self.protocol_version = self._sdio_protocol_version()

@@ -462,3 +462,14 @@ def test_an_object_added_with_0xd215_counting_is_not_taken_for_an_unreported_ima
     with camera:
         camera.capture(tmp_path, "f")
     assert body.premature_requests == 0 and body.downloads == 1
+
+
+def test_a_body_not_in_pc_remote_mode_is_told_so_before_any_sony_operation():
+    """library.c fixup_cached_deviceinfo runs the SDIO handshake only when DeviceInfo lists 0x9202
+    (GetSDIOGetExtDeviceInfo); a body that lists none of Sony's operations is not in PC Remote mode: one line that
+    says what to do, and no 0x92xx command sent to it."""
+    camera, body = emulated(not_pc_remote=True)
+    writes = recording(body)
+    with pytest.raises(CameraError, match="PC Remote"):
+        camera.__enter__()
+    assert not any(w[4:6] == b"\x01\x00" and w[7] == 0x92 for w in writes)
