@@ -485,13 +485,14 @@ class EmulatedSonyA7:
             if len(payload) not in (1, 2):
                 return Response.PARAMETER_NOT_SUPPORTED
             delta = struct.unpack("<b" if len(payload) == 1 else "<h", payload)[0]
-            if delta not in (1, -1):
+            if delta == 0:  # a jump of any other width moves that many notches (config.c sends posnew - posorig)
                 return Response.PARAMETER_NOT_SUPPORTED
             self._step_count += 1
-            notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
+            if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0:
+                delta += 1 if delta > 0 else -1  # one notch too far
             if code == Property.SONY_SHUTTER_SPEED and self.faults.reversed_shutter_steps:
                 delta = -delta  # libgphoto2: +1 = one notch shorter (up the notch index); this body counts back
-            self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta * notches))
+            self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta))
             return Response.OK
         if code in self._buttons:
             if len(payload) != 2:

@@ -473,3 +473,16 @@ def test_a_body_not_in_pc_remote_mode_is_told_so_before_any_sony_operation():
     with pytest.raises(CameraError, match="PC Remote"):
         camera.__enter__()
     assert not any(w[4:6] == b"\x01\x00" and w[7] == 0x92 for w in writes)
+
+
+@pytest.mark.parametrize("jump, notches", [(b"\x03", 3), (b"\xfe", -2), (b"\x01", 1)])
+def test_the_emulated_body_takes_libgphoto2s_multi_notch_jumps(jump, notches):
+    """config.c _put_Sony_ShutterSpeed and _put_sony_value_* send a jump width (u8 posnew - posorig, 0x100 - n
+    downwards) as their first step; a body that behaves as libgphoto2 expects moves that many notches."""
+    camera, body = emulated()
+    with camera:
+        before = body.camera.notch.index
+        camera.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, Property.SONY_SHUTTER_SPEED, data_out=jump)
+        body.clock.sleep(body.latencies.step_s)
+        camera.refresh()
+        assert body.camera.notch.index == before + notches
