@@ -10,12 +10,12 @@ gives the same RAW data as ``--camera sim``. ``Latencies`` hold the timings; by 
 and time is virtual (a clock that advances when the host sleeps or a read times out), so tests run fast and
 deterministically; with a real clock (e.g. behind HDRCAM_USB_BACKEND) scale them down.
 
-``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response
-that never comes, a disconnect in the middle of a download or while waiting for the image (its first calls
-failing with EIO, as before the kernel sees the device go), a response for the wrong transaction, steps that
-overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, I/O errors on the bulk-in and interrupt
-pipes, images of whole USB packets (ZLPs),
-properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
+``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response that
+never comes, a disconnect in the middle of a download or while waiting for the image (its first calls failing
+with EIO, as before the kernel sees the device go), a response for the wrong transaction, steps that overshoot, a
+stale or early ObjectAdded event, a stalled bulk-in or bulk-out pipe, I/O errors on the bulk-in and interrupt
+pipes, images of whole USB packets (ZLPs), properties of every PTP type, empty SDIO answers, and a body set up
+wrongly (not M, ISO Auto, JPEG only, AF).
 Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet per
 read, a header sent alone (and a body that then takes the host's data phases only split so), a late response of
 an earlier transaction, a malformed event packet, an event split over two interrupt transfers. Sony details
@@ -106,6 +106,9 @@ class Faults:
     stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
     early_object_added: bool = False  # ObjectAdded when the exposure ends, before 0xD215 says the image is ready
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
+    stall_out_operation: int | None = None  # the next command with this code is not taken: its write fails with
+    # EPIPE and bulk-out stays halted until the host clears it (libgphoto2 usb.c ptp_usb_sendreq clears the OUT
+    # endpoint's halt and sends the request once more)
     io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
     # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
     io_error_mid_data_operation: int | None = None  # the second read of the next data phase of this command fails
@@ -214,6 +217,7 @@ class EmulatedSonyA7:
         self.opened_at: float | None = None  # when OpenSession last succeeded
         self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
+        self.out_halted = False  # bulk-out stalled until the host clears the halt (Faults.stall_out_operation)
         self.interrupt_halted = False  # interrupt-in halted until the host clears it (Faults.io_error_events)
         self._unplug_eio_calls = 0  # USB calls left that fail with EIO after an unplug (Faults.unplug_eio_calls)
         self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
@@ -251,6 +255,11 @@ class EmulatedSonyA7:
     def bulk_out(self, chunk: bytes) -> None:
         """Bytes the host wrote; a transfer ends with a short packet or a ZLP."""
         self._require_connected()
+        if not self._out_transfer and len(chunk) >= HEADER_SIZE and self.faults.stall_out_operation is not None \
+                and struct.unpack_from("<HH", chunk, 4) == (ContainerType.COMMAND, self.faults.stall_out_operation):
+            self.faults.stall_out_operation, self.out_halted = None, True
+        if self.out_halted:
+            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         self._out_transfer += chunk
         if len(chunk) and len(chunk) % BULK_PACKET_BYTES == 0:
             return  # a full packet: the transfer goes on
@@ -329,6 +338,8 @@ class EmulatedSonyA7:
             self.interrupt_halted = False
         elif endpoint == BULK_IN_ENDPOINT:
             self.halted = False
+        elif endpoint == BULK_OUT_ENDPOINT:
+            self.out_halted = False
 
     def interrupt_in(self, buffer) -> int:
         if self.faults.disconnect_waiting_for_image and self._image_due_s is not None:

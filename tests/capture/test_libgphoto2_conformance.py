@@ -486,3 +486,25 @@ def test_the_emulated_body_takes_libgphoto2s_multi_notch_jumps(jump, notches):
         body.clock.sleep(body.latencies.step_s)
         camera.refresh()
         assert body.camera.notch.index == before + notches
+
+
+@pytest.mark.parametrize("operation", [Operation.SONY_SET_CONTROL_DEVICE_B, Operation.SONY_GET_ALL_DEVICE_PROP_DATA])
+def test_a_command_refused_by_a_stalled_out_pipe_is_sent_once_more_after_clearing_it(tmp_path, operation):
+    """usb.c ptp_usb_sendreq: a request whose write fails (GP_ERROR_IO_WRITE) has the OUT endpoint's halt cleared
+    and is written once more - the body never took it, so even a press is safe to send again. A stall at the half
+    press ended the capture."""
+    camera, body = emulated()
+    with camera:
+        body.faults.stall_out_operation = operation
+        writes, original = [], body.bulk_out
+
+        def bulk_out(chunk: bytes) -> None:  # the writes the body took
+            original(chunk)
+            writes.append(bytes(chunk))
+
+        body.bulk_out = bulk_out
+        camera.capture(tmp_path, "f")
+    presses = [(struct.unpack_from("<I", w, 12)[0], struct.unpack_from("<H", writes[i + 1], 12)[0])
+               for i, w in enumerate(writes) if w[6:8] == b"\x07\x92" and w[4:6] == b"\x01\x00"]
+    assert presses == [(0xD2C1, 2), (0xD2C2, 2), (0xD2C2, 1), (0xD2C1, 1)] and body.downloads == 1
+    assert len(body.shots) == 1

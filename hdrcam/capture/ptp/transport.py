@@ -8,7 +8,9 @@ device that sent no ZLP, or data and response in one transfer) are kept for the 
 zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
 known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. A device that sends a data
 container's 12-byte header in a transfer of its own gets the host's data phases split the same way from then on
-(ptp_usb_getdata sets params->split_header_data, ptp_usb_senddata honours it). Events arrive on the
+(ptp_usb_getdata sets params->split_header_data, ptp_usb_senddata honours it). A command whose write is refused
+(a stall, or an I/O error with the device still there) is written once more after clearing the OUT endpoint's
+halt, as ptp_usb_sendreq does: the device never took it. Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
 become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO before any byte of a container arrived: a transfer
@@ -119,10 +121,31 @@ class UsbTransport:
         transfers = [packet]
         if self.split_header_data and container.kind == ContainerType.DATA and len(packet) > HEADER_SIZE:
             transfers = [packet[:HEADER_SIZE], packet[HEADER_SIZE:]]
+        if container.kind == ContainerType.COMMAND:
+            self._send_command(packet, timeout_ms)
+            return
         with _usb_errors(self, "sending", timeout_ms):
             for transfer in transfers:
                 self.bulk_out.write(transfer, timeout_ms)
             if len(transfers[-1]) % self.bulk_out.wMaxPacketSize == 0:
+                self.bulk_out.write(b"", timeout_ms)
+
+    def _send_command(self, packet: bytes, timeout_ms: int) -> None:
+        """Write a command container (one short packet); a write refused by a stalled pipe or an I/O error, the
+        device still there, has the OUT endpoint's halt cleared and is written once more (libgphoto2 usb.c
+        ptp_usb_sendreq: the device never took the request, so sending it again repeats nothing)."""
+        try:
+            self.bulk_out.write(packet, timeout_ms)
+        except usb.core.USBError as error:
+            translated = self._translate(error, "sending", timeout_ms)
+            if not isinstance(translated, Stalled):
+                raise translated from None
+            with contextlib.suppress(usb.core.USBError):
+                self.device.clear_halt(self.bulk_out)
+            with _usb_errors(self, "sending", timeout_ms):
+                self.bulk_out.write(packet, timeout_ms)
+        if len(packet) % self.bulk_out.wMaxPacketSize == 0:  # only with packets of 32 bytes or less (full speed)
+            with _usb_errors(self, "sending", timeout_ms):
                 self.bulk_out.write(b"", timeout_ms)
 
     def receive(self, timeout_ms: int) -> Container:
