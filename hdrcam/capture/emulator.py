@@ -10,20 +10,21 @@ gives the same RAW data as ``--camera sim``. ``Latencies`` hold the timings; by 
 and time is virtual (a clock that advances when the host sleeps or a read times out), so tests run fast and
 deterministically; with a real clock (e.g. behind HDRCAM_USB_BACKEND) scale them down.
 
-``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response
-that never comes, a disconnect in the middle of a download or while waiting for the image (its first calls
-failing with EIO, as before the kernel sees the device go), a response for the wrong transaction, steps that
-overshoot, a stale or early ObjectAdded event, a stalled bulk-in pipe, I/O errors on the bulk-in and interrupt
-pipes, images of whole USB packets (ZLPs),
-properties of every PTP type, empty SDIO answers, and a body set up wrongly (not M, ISO Auto, JPEG only, AF).
-Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet
-per read, a header sent alone, a late response of an earlier transaction, a malformed event packet. Sony
-details libgphoto2 documents: 0x9207 +1 moves the shutter one notch shorter (libgphoto2 config.c
-_put_Sony_ShutterSpeed sends 0x01 when the target is shorter; ``reversed_shutter_steps`` flips it), 0xD215
-counts images without the 0x8000 flag while the body is still writing ("also turns to 1") and may read
-0x8000 alone either for "none" (camera_wait_for_event) or for "ready" (camera_sony_capture), 0xD213 = 3 as
-focus found (RX0), 0x9202 answers a version and u32-counted code lists (ptp_sony_get_vendorpropcodes), and
-descriptors with a second enumeration list (ptp_unpack_Sony_DPD, 2024 bodies).
+``Faults`` make the camera misbehave on purpose, each as a real body can: DeviceBusy answers, a response that
+never comes, a disconnect in the middle of a download or while waiting for the image (its first calls failing
+with EIO, as before the kernel sees the device go), a response for the wrong transaction, steps that overshoot, a
+stale or early ObjectAdded event, a stalled bulk-in or bulk-out pipe, I/O errors on the bulk-in and interrupt
+pipes, images of whole USB packets (ZLPs), properties of every PTP type, empty SDIO answers, and a body set up
+wrongly (not M, ISO Auto, JPEG only, AF).
+Transport faults that libgphoto2's usb.c copes with: data and response in one transfer (no ZLP), one packet per
+read, a header sent alone (and a body that then takes the host's data phases only split so), a late response of
+an earlier transaction, a malformed event packet, an event split over two interrupt transfers. Sony details
+libgphoto2 documents: 0x9207 +1 moves the shutter one notch shorter (libgphoto2 config.c _put_Sony_ShutterSpeed
+sends 0x01 when the target is shorter; ``reversed_shutter_steps`` flips it), 0xD215 counts images without the
+0x8000 flag while the body is still writing ("also turns to 1") and may read 0x8000 alone either for "none"
+(camera_wait_for_event) or for "ready" (camera_sony_capture), 0xD213 = 3 as focus found (RX0), 0x9202 answers a
+version and u32-counted code lists (ptp_sony_get_vendorpropcodes), and descriptors with a second enumeration list
+(ptp_unpack_Sony_DPD, 2024 bodies).
 The emulator serves DNG files (format code 0xB101 like the A7's ARW).
 """
 
@@ -46,7 +47,7 @@ from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSUR
                                       SONY_RAW_FORMAT, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, ClassRequest,
                                       STARTUP_WAIT_MODELS, STARTUP_WAIT_S, ContainerType, DataType, Event, Operation,
                                       Property, Response)
-from hdrcam.capture.ptp.container import Container, ContainerError, data, event, response
+from hdrcam.capture.ptp.container import HEADER_SIZE, Container, ContainerError, data, event, response
 from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, FORM_NONE, FORM_RANGE, DeviceInfo, ObjectInfo,
                                          PropertyDescriptor, Writer, pack_sony_properties)
 from hdrcam.capture.ptp.session import Clock
@@ -93,6 +94,8 @@ class Faults:
 
     busy: int = 0  # answer the next N operations (after the handshake) with DeviceBusy
     silent_operation: int | None = None  # never answer the next command with this code
+    slow_operation: int | None = None  # answer the next command with this code only after slow_answer_s (library.c
+    slow_answer_s: float = 15.0  # camera_init: "We have cameras where a response takes 15 seconds(!)")
     disconnect_during_download: bool = False  # unplug after the first chunk of the next GetObject
     disconnect_after_downloads: int | None = None  # unplug mid-download once this many images were downloaded
     disconnect_waiting_for_image: bool = False  # unplug at the first event read after the shutter release
@@ -103,6 +106,9 @@ class Faults:
     stale_object_added: bool = False  # an extra ObjectAdded after each download (as for a RAW+JPEG pair)
     early_object_added: bool = False  # ObjectAdded when the exposure ends, before 0xD215 says the image is ready
     stalls_during_download: int = 0  # stall (EPIPE) the bulk-in pipe mid-download this many times
+    stall_out_operation: int | None = None  # the next command with this code is not taken: its write fails with
+    # EPIPE and bulk-out stays halted until the host clears it (libgphoto2 usb.c ptp_usb_sendreq clears the OUT
+    # endpoint's halt and sends the request once more)
     io_error_operation: int | None = None  # the first read of the next answer to this command fails with EIO
     # (LIBUSB_ERROR_IO: a transfer error, the device still there; libgphoto2 usb.c clears the IN halt, reads again)
     io_error_mid_data_operation: int | None = None  # the second read of the next data phase of this command fails
@@ -133,13 +139,20 @@ class Faults:
     coalesce_response: bool = False  # a data phase and its response go out as one transfer (no ZLP)
     max_read_bytes: int | None = None  # a bulk read returns at most this many bytes
     split_header: bool = False  # the 12-byte header of a data container goes out as its own transfer
+    split_header_out: bool = False  # the body takes a host's data phase only with its 12-byte header in a transfer
+    # of its own, then the payload (what libgphoto2 usb.c ptp_usb_senddata sends once ptp_usb_getdata saw the body
+    # split a header: params->split_header_data); a header sent together with its payload is not read
     unknown_length_objects: bool = False  # GetObject's data container says length 0xFFFFFFFF (size not known in
     # advance; libgphoto2 usb.c ptp_usb_getdata reads it until a short packet)
     stale_response_operation: int | None = None  # before answering this command, send a late response of the one before
     malformed_event: bool = False  # a 4-parameter event packet at the next full press
+    split_events: bool = False  # each event goes out as two interrupt transfers, its 12-byte header then its
+    # parameters (libgphoto2 usb.c ptp_usb_event reads on while the container is longer than what it read)
     damaged_image: int | None = None  # the Nth image (1-based) downloads with its data zeroed after the header
     drive_mode: int = 1  # 0x5013: 1 single shot, 2 continuous, 0x8337 bracket
     vendor_extension_id: int = SONY_VENDOR_EXTENSION_ID  # 0xFFFFFFFF (MTP) as some Sony bodies report it
+    not_pc_remote: bool = False  # USB Connection not on PC Remote: DeviceInfo lists no Sony operation (0x92xx) and
+    # each is answered OperationNotSupported (library.c fixup_cached_deviceinfo then skips the SDIO handshake)
     lens_reports_aperture: bool = True  # False: a lens without electronic contacts (no 0x5007)
     device_info_strings: int = 4  # DeviceInfo's trailing strings sent (Manufacturer, Model, DeviceVersion,
     # SerialNumber, in that order): optional to libgphoto2's ptp_unpack_DI
@@ -147,6 +160,14 @@ class Faults:
     # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
     session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
     # body still holds for an earlier host; library.c camera_init tries the next ids)
+
+
+def _is_split_data_header(transfer: bytes) -> bool:
+    """Whether ``transfer`` is the 12-byte header alone of a data container that carries a payload."""
+    if len(transfer) != HEADER_SIZE:
+        return False
+    length, kind = struct.unpack_from("<IH", transfer)
+    return kind == ContainerType.DATA and length > HEADER_SIZE
 
 
 class _InPipe:
@@ -196,6 +217,7 @@ class EmulatedSonyA7:
         self.opened_at: float | None = None  # when OpenSession last succeeded
         self.ignored_presses = 0  # full presses made while the body was starting up (Faults.model)
         self.halted = False  # bulk-in stalled until the host clears the halt
+        self.out_halted = False  # bulk-out stalled until the host clears the halt (Faults.stall_out_operation)
         self.interrupt_halted = False  # interrupt-in halted until the host clears it (Faults.io_error_events)
         self._unplug_eio_calls = 0  # USB calls left that fail with EIO after an unplug (Faults.unplug_eio_calls)
         self._io_error_due = False  # the next bulk-in read fails with EIO (Faults.io_error_operation)
@@ -207,6 +229,9 @@ class EmulatedSonyA7:
         self.lens_covered = False
         self.priority_mode = 0  # 0xD25A: 0 camera, 1 application (set by the host with 0x9205)
         self._out_transfer = bytearray()
+        self._out_header = b""  # a data container's header that came in a transfer of its own
+        self._answer_due_s: float | None = None  # when a slow answer (Faults.slow_operation) may be read
+        self.read_timeout_ms = 0  # the timeout of the bulk-in read under way (ms)
         self._awaiting_data: Container | None = None
         self._reset_state()
         self._handshake_done = False
@@ -230,12 +255,25 @@ class EmulatedSonyA7:
     def bulk_out(self, chunk: bytes) -> None:
         """Bytes the host wrote; a transfer ends with a short packet or a ZLP."""
         self._require_connected()
+        if not self._out_transfer and len(chunk) >= HEADER_SIZE and self.faults.stall_out_operation is not None \
+                and struct.unpack_from("<HH", chunk, 4) == (ContainerType.COMMAND, self.faults.stall_out_operation):
+            self.faults.stall_out_operation, self.out_halted = None, True
+        if self.out_halted:
+            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
         self._out_transfer += chunk
         if len(chunk) and len(chunk) % BULK_PACKET_BYTES == 0:
             return  # a full packet: the transfer goes on
         transfer, self._out_transfer = bytes(self._out_transfer), bytearray()
         if not transfer:
             return
+        header, self._out_header = self._out_header, b""
+        if not header and _is_split_data_header(transfer):
+            self._out_header = transfer  # its payload follows as the next transfer (usb.c split_header_data)
+            return
+        if self.faults.split_header_out and not header and len(transfer) > HEADER_SIZE and \
+                struct.unpack_from("<H", transfer, 4)[0] == ContainerType.DATA:
+            return  # a header sent with its payload: this body does not read it (the host times out)
+        transfer = header + transfer
         try:
             container = Container.unpack(transfer)
         except ContainerError:
@@ -253,7 +291,15 @@ class EmulatedSonyA7:
         self._answer(container, None)
 
     def bulk_in(self, buffer) -> int:
+        """A bulk-in read into ``buffer`` (bytes copied); an answer not yet due (Faults.slow_operation) arrives
+        within a read whose timeout (``read_timeout_ms``, set by the backend) reaches it, else the read times out."""
         self._require_connected()
+        if self._answer_due_s is not None:
+            wait_s = self._answer_due_s - self.clock.monotonic()
+            if wait_s > self.read_timeout_ms / 1000:
+                raise usb.core.USBTimeoutError("Operation timed out", errno=errno.ETIMEDOUT)
+            self.clock.sleep(wait_s)
+            self._answer_due_s = None
         self._advance()
         if self.faults.max_read_bytes:
             buffer = memoryview(buffer).cast("B")[:self.faults.max_read_bytes]
@@ -283,7 +329,7 @@ class EmulatedSonyA7:
                 self._image, self._image_format, self._image_name = self._queued_images.pop(0)
             self.downloads += 1
             if self.faults.stale_object_added:
-                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+                self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         return count
 
     def clear_halt(self, endpoint: int) -> None:
@@ -292,6 +338,8 @@ class EmulatedSonyA7:
             self.interrupt_halted = False
         elif endpoint == BULK_IN_ENDPOINT:
             self.halted = False
+        elif endpoint == BULK_OUT_ENDPOINT:
+            self.out_halted = False
 
     def interrupt_in(self, buffer) -> int:
         if self.faults.disconnect_waiting_for_image and self._image_due_s is not None:
@@ -311,11 +359,19 @@ class EmulatedSonyA7:
         memoryview(buffer).cast("B")[:len(packet)] = packet
         return len(packet)
 
+    def _queue_event(self, packet: bytes) -> None:
+        """Queue an event container for the interrupt pipe: one transfer, or two with Faults.split_events."""
+        if self.faults.split_events and len(packet) > HEADER_SIZE:
+            self.events.extend((packet[:HEADER_SIZE], packet[HEADER_SIZE:]))
+        else:
+            self.events.append(packet)
+
     def class_request(self, request: int, payload: bytes) -> bytes:
         self._require_connected()
         if request == ClassRequest.CANCEL:
             self.in_pipe.clear()
             self._awaiting_data, self._out_transfer, self._downloading = None, bytearray(), False
+            self._out_header, self._answer_due_s = b"", None
             return b""
         if request == ClassRequest.DEVICE_RESET:
             self._reset_state()
@@ -343,6 +399,8 @@ class EmulatedSonyA7:
         if faults.silent_operation == code:
             faults.silent_operation = None
             return
+        if faults.slow_operation == code:
+            faults.slow_operation, self._answer_due_s = None, self.clock.monotonic() + faults.slow_answer_s
         if faults.io_error_operation == code:
             faults.io_error_operation, self._io_error_due = None, True
         if faults.io_error_mid_data_operation == code:
@@ -361,7 +419,7 @@ class EmulatedSonyA7:
             self._send(response(Response.SESSION_NOT_OPEN, transaction_id))
             return
         handler = getattr(self, f"_op_{code:04x}", None)
-        if handler is None:
+        if handler is None or (faults.not_pc_remote and code >> 12 == 9):
             self._send(response(Response.OPERATION_NOT_SUPPORTED, transaction_id))
             return
         outcome = handler(request, payload)
@@ -398,8 +456,9 @@ class EmulatedSonyA7:
 
     def _op_1001(self, request, payload):  # GetDeviceInfo
         texts = ("Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
+        operations = tuple(sorted(code for code in Operation if not (self.faults.not_pc_remote and code >> 12 == 9)))
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
-                          tuple(sorted(Operation)), tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
+                          operations, tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
                           (SONY_RAW_FORMAT,), *texts)
         packed = info.pack()
         left_out = sum(len(Writer().string(text).bytes()) for text in texts[self.faults.device_info_strings:])
@@ -437,13 +496,14 @@ class EmulatedSonyA7:
             if len(payload) not in (1, 2):
                 return Response.PARAMETER_NOT_SUPPORTED
             delta = struct.unpack("<b" if len(payload) == 1 else "<h", payload)[0]
-            if delta not in (1, -1):
+            if delta == 0:  # a jump of any other width moves that many notches (config.c sends posnew - posorig)
                 return Response.PARAMETER_NOT_SUPPORTED
             self._step_count += 1
-            notches = 2 if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0 else 1
+            if self.faults.overshoot_every and self._step_count % self.faults.overshoot_every == 0:
+                delta += 1 if delta > 0 else -1  # one notch too far
             if code == Property.SONY_SHUTTER_SPEED and self.faults.reversed_shutter_steps:
                 delta = -delta  # libgphoto2: +1 = one notch shorter (up the notch index); this body counts back
-            self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta * notches))
+            self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, delta))
             return Response.OK
         if code in self._buttons:
             if len(payload) != 2:
@@ -519,7 +579,7 @@ class EmulatedSonyA7:
         now = self.clock.monotonic()
         if self._early_event_s is not None and now >= self._early_event_s:
             self._early_event_s = None
-            self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+            self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
         for step in [s for s in self._steps if s[0] <= now]:
             self._steps.remove(step)
             _, code, delta = step
@@ -530,11 +590,11 @@ class EmulatedSonyA7:
                 offered = self._offered_isos()
                 index = min(max(offered.index(int(self.camera.settings().iso)) + delta, 0), len(offered) - 1)
                 self.camera.set_iso(offered[index])
-            self.events.append(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
+            self._queue_event(event(Event.SONY_PROPERTY_CHANGED, 0, code).pack())
         if self._image_due_s is not None and now >= self._image_due_s:
             self._image_due_s = None
             if not self.faults.early_object_added:
-                self.events.append(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
+                self._queue_event(event(Event.SONY_OBJECT_ADDED, 0, SONY_IN_MEMORY_OBJECT).pack())
 
     def _offered_isos(self) -> tuple[int, ...]:
         """The ISOs this body steps through (Faults.iso_max)."""
@@ -665,6 +725,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         return len(data)
 
     def bulk_read(self, dev_handle, ep, intf, buff, timeout):
+        self.camera.read_timeout_ms = timeout
         return self._read(self.camera.bulk_in, buff, timeout)
 
     def intr_read(self, dev_handle, ep, intf, buff, timeout):

@@ -1,8 +1,9 @@
 """``--camera usb``: a Sony A7 in PC-remote mode over PTP/USB, with Sony's SDIO extension (REFERENCE.md sec. 4).
 
-Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo (vendor extension 0x11),
-the SDIO handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every
-property descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
+Life cycle: find the camera (054c:*, PTP interface), OpenSession, GetDeviceInfo (vendor extension 0x11, and
+0x9202 among its operations, without which libgphoto2 skips the handshake: no PC Remote mode), the SDIO
+handshake 0x9201(1), 0x9201(2), 0x9202(0xC8) -> protocol version, 0x9201(3), then 0x9209 for every property
+descriptor. The A7 speaks protocol "mode 2": shutter and ISO cannot be set absolutely, only
 stepped one notch at a time with 0x9207; each step is polled through 0x9209 until the value lands, and an
 overshoot is stepped back. An empty 0x9202 answer is asked again (Sony's PTP documentation says to retry;
 the body is still starting its PC-remote mode); if it stays empty the handshake goes on with the version
@@ -23,10 +24,11 @@ before the release; for the next object of the same shot (RAW + JPEG) only if 0x
 before (a body that announced it with a count means "empty" by 0x8000); a count without the flag (the body
 still writing: "also turns to 1") never is. Events (0xC201 ObjectAdded) only wake the wait, they are not taken
 as proof: a stale or early one would make the camera answer GetObjectInfo with InvalidObjectHandle, and
-premature access can crash the firmware; only when the wait runs out after one arrived is 0xFFFFC001 asked for
-(a body announcing images by the event alone: "needed on older cameras like the a58"). Then GetObjectInfo and
-GetObject on 0xFFFFC001; with RAW + JPEG the object that is not RAW is dropped and the next one awaited the
-same way. All vendor quirks live here; the generic PTP layer knows nothing of Sony.
+premature access can crash the firmware; 0xFFFFC001 is asked for on one only when 0xD215 stays 0 for a second
+after it, or when the wait runs out after one arrived (a body announcing images by the event alone: "needed on
+older cameras like the a58"). Then GetObjectInfo and GetObject on 0xFFFFC001; with RAW + JPEG the object that
+is not RAW is dropped and the next one awaited the same way. All vendor quirks live here; the generic PTP layer
+knows nothing of Sony.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ STEP_POLL_INTERVAL_S = 0.1
 STEP_TIMEOUT_S = 3.0  # a notch lands in ~0.7 s on an A7
 CAPTURE_TIMEOUT_S = 35.0  # plus the exposure time
 FOCUS_TIMEOUT_S = 5.0  # from the half press, in AF modes
+UNREPORTED_GRACE_S = 1.0  # 0xD215 left at 0 this long after an ObjectAdded: the body announces by the event alone
 FOCUS_POLL_INTERVAL_S = 0.05
 SDIO_INFO_ATTEMPTS = 10  # an empty 0x9202 answer is asked again this many times, SDIO_RETRY_S apart
 SDIO_RETRY_S = 0.2
@@ -200,6 +203,9 @@ class SonyA7Camera:
         self.model = f"{info.manufacturer} {info.model}".strip() or self.model  # both optional (ptp_unpack_DI)
         self.model_code = info.model.strip()
         self.firmware = info.device_version
+        if Operation.SONY_GET_SDIO_EXT_DEVICE_INFO not in info.operations:  # library.c fixup_cached_deviceinfo
+            raise CameraError(f"{self.model} offers no remote control (its operations lack Sony's 0x9202): set USB "
+                              "Connection to 'PC Remote' in the camera's menu, then reconnect the cable")
         session.transact(Operation.SONY_SDIO_CONNECT, 1, 0, 0)
         session.transact(Operation.SONY_SDIO_CONNECT, 2, 0, 0)
         self.protocol_version = self._sdio_protocol_version()
@@ -463,14 +469,24 @@ class SonyA7Camera:
 
     def _wait_for_image(self, timeout_s: float, flag_alone_is_ready: bool) -> int:
         """Until 0xD215 says an image is ready (module docstring; ``flag_alone_is_ready``: 0x8000 exactly counts);
-        events only shorten the wait between polls. Returns the 0xD215 value that said so. When the wait runs out
-        after an ObjectAdded arrived, 0xFFFFC001 is asked for once before giving up: a body that announces its
-        image only by that event (library.c camera_sony_capture: "needed on older cameras like the a58")."""
+        events only shorten the wait between polls. Returns the 0xD215 value that said so. A body that announces
+        its image only by ObjectAdded (library.c camera_sony_capture ends its wait on that event: "needed on older
+        cameras like the a58") has 0xFFFFC001 asked for once 0xD215 read 0 at every poll for UNREPORTED_GRACE_S
+        after the event (a body that counts its image while writing is waited on), and once more when the wait
+        runs out after an ObjectAdded."""
         deadline = self.clock.monotonic() + timeout_s
         object_added = False
+        quiet_since = None  # when an ObjectAdded came with 0xD215 at 0, while it stays 0
         while not _image_ready(pending := self._current_after_refresh(Property.SONY_PENDING_IMAGES),
                                flag_alone_is_ready):
-            if self.clock.monotonic() > deadline:
+            now = self.clock.monotonic()
+            if pending:
+                quiet_since = None
+            elif quiet_since is not None and now - quiet_since >= UNREPORTED_GRACE_S:
+                quiet_since = None  # asked for once per ObjectAdded
+                if self._object_in_memory():
+                    return pending
+            if now > deadline:
                 if object_added and self._object_in_memory():
                     return pending
                 stuck = (" (0xD215 read 0x8000 before and after: an image left in the camera's memory is not "
@@ -479,7 +495,10 @@ class SonyA7Camera:
                 raise TransportTimeout(f"the camera reported no image within {timeout_s:g} s of the shutter "
                                        f"release{stuck}")
             event = self._pause_for_events()
-            object_added |= event is not None and event.code == Event.SONY_OBJECT_ADDED
+            if event is not None and event.code == Event.SONY_OBJECT_ADDED:
+                object_added = True
+                if not pending and quiet_since is None:
+                    quiet_since = self.clock.monotonic()
         return pending
 
     def _object_in_memory(self) -> bool:

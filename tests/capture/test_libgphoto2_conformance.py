@@ -10,8 +10,9 @@ import struct
 import pytest
 
 from hdrcam.capture.camera import CameraError
+from hdrcam.capture.emulator import Latencies
 from hdrcam.capture.ptp.codes import STARTUP_WAIT_S, DataType, Operation, Property
-from hdrcam.capture.ptp.container import data, response
+from hdrcam.capture.ptp.container import HEADER_SIZE, data, response
 from hdrcam.capture.ptp.datasets import ObjectInfo, PropertyDescriptor, Reader, unpack_sony_properties
 from hdrcam.capture.ptp.transport import UsbTransport
 from tests.capture.helpers import emulated_a7 as emulated
@@ -236,7 +237,7 @@ class _ScriptedBulkIn:
 
 def test_a_container_shorter_than_its_length_field_is_reported_at_once():
     """A data container 4 bytes short ends in a short packet: one line naming the sizes, not a read that runs
-    on into the response and times out (3 x 10 s for a read-only operation)."""
+    on into the response and times out (3 x 20 s for a read-only operation)."""
     transport = object.__new__(UsbTransport)
     transport.bulk_in, transport._pending = _ScriptedBulkIn([data(0x1008, 5, bytes(1000)).pack()[:-4],
                                                              response(0x2001, 5).pack()]), b""
@@ -383,3 +384,127 @@ def test_focus_modes_are_named_as_libgphoto2_names_them(value, name):
     from hdrcam.capture.ptp.codes import FOCUS_MODE_NAMES
 
     assert FOCUS_MODE_NAMES[value] == name
+
+
+def test_a_body_that_splits_its_headers_gets_the_hosts_data_phases_split_too(tmp_path):
+    """usb.c ptp_usb_getdata sets split_header_data when a data container's first read is its 12-byte header alone;
+    ptp_usb_senddata then writes every data phase as that header alone, then the payload. A body that needs it
+    (Faults.split_header_out) never read hdrcam's header-with-payload writes: no priority mode, no step, no press."""
+    camera, body = emulated(split_header=True, split_header_out=True)
+    writes = recording(body)
+    with camera:
+        assert body.priority_mode == 1
+        camera.capture(tmp_path, "f")
+    assert writes[6:9] == [hex_bytes(h) for h in (
+        "10000000 0100 0592 06000000 5ad20000", "0d000000 0200 0592 06000000", "01")]
+    assert body.downloads == 1 and body.premature_requests == 0
+
+
+def test_a_body_sending_whole_containers_gets_whole_data_phases(tmp_path):
+    """Without a split header from the body, a data phase stays one transfer (ptp_usb_senddata's default)."""
+    camera, body = emulated()
+    writes = recording(body)
+    with camera:
+        pass
+    assert writes[7] == hex_bytes("0d000000 0200 0592 06000000 01")
+
+
+@pytest.mark.parametrize("payload_bytes, zlp", [(1, False), (512, True), (1024, True), (500, False)])
+def test_a_split_data_phase_ends_with_a_zlp_when_its_payload_is_whole_packets(payload_bytes, zlp):
+    """ptp_usb_senddata, split: the header alone (a short packet ends it), then the payload, then a ZLP when the
+    payload is a multiple of wMaxPacketSize (``written`` counts the payload only)."""
+    camera, body = emulated(split_header=True)
+    with camera:
+        writes = recording(body)
+        assert camera.session.transport.split_header_data
+        camera.session.transport.send(data(Operation.SONY_SET_CONTROL_DEVICE_B, 99, bytes(payload_bytes)), 1000)
+        sent = writes[:]
+    header = struct.pack("<IHHI", HEADER_SIZE + payload_bytes, 2, Operation.SONY_SET_CONTROL_DEVICE_B, 99)
+    assert sent == [header, bytes(payload_bytes)] + ([b""] if zlp else [])
+
+
+def test_an_event_split_over_two_interrupt_transfers_is_read_whole():
+    """usb.c ptp_usb_event: while an event container is longer than what was read, it reads on (the "incremental
+    read"); the whole ObjectAdded comes back, and the pipe is left at the next event."""
+    camera, body = emulated(split_events=True)
+    with camera:
+        body._queue_event(struct.pack("<IHHII", 16, 4, 0xC201, 0, 0xFFFFC001))
+        body._queue_event(struct.pack("<IHHII", 16, 4, 0xC203, 0, 0xD20D))
+        first, second = camera.session.transport.read_event(100), camera.session.transport.read_event(100)
+    assert (first.code, first.params) == (0xC201, (0xFFFFC001,))
+    assert (second.code, second.params) == (0xC203, (0xD20D,))
+
+
+def test_a_body_announcing_images_by_split_object_added_events_is_downloaded(tmp_path):
+    """An a58-style body (0xD215 stays 0, ObjectAdded alone says the image is there) whose events come in two
+    interrupt transfers: the ObjectAdded must still be seen, or the shot is lost after the 35 s wait."""
+    camera, body = emulated(pending_images_unreported=True, split_events=True)
+    with camera:
+        frame = camera.capture(tmp_path, "f")
+    assert frame.raw.bayer_dn.shape == (48, 64) and body.premature_requests == 0 and body.downloads == 1
+
+
+def test_a_body_announcing_images_only_by_object_added_is_not_waited_on_for_35_s(tmp_path):
+    """camera_sony_capture ends its wait at the ObjectAdded; an a58-style body whose 0xD215 stays 0 took 35 s a
+    frame (the whole timeout) before 0xFFFFC001 was asked for. Asked for once 0xD215 stayed 0 for 1 s after it."""
+    camera, body = emulated(pending_images_unreported=True)
+    with camera:
+        started = body.clock.monotonic()
+        camera.capture(tmp_path, "f")
+        took_s = body.clock.monotonic() - started
+    assert took_s < 5.0 and body.premature_requests == 0 and body.downloads == 1
+
+
+def test_an_object_added_with_0xd215_counting_is_not_taken_for_an_unreported_image(tmp_path):
+    """A body that counts its image in 0xD215 while writing (no flag: "also turns to 1") and sends ObjectAdded
+    early is still waited on until 0xD215 says ready, however long the writing takes."""
+    camera, body = emulated(Latencies(image_ready_s=6.0), early_object_added=True)
+    with camera:
+        camera.capture(tmp_path, "f")
+    assert body.premature_requests == 0 and body.downloads == 1
+
+
+def test_a_body_not_in_pc_remote_mode_is_told_so_before_any_sony_operation():
+    """library.c fixup_cached_deviceinfo runs the SDIO handshake only when DeviceInfo lists 0x9202
+    (GetSDIOGetExtDeviceInfo); a body that lists none of Sony's operations is not in PC Remote mode: one line that
+    says what to do, and no 0x92xx command sent to it."""
+    camera, body = emulated(not_pc_remote=True)
+    writes = recording(body)
+    with pytest.raises(CameraError, match="PC Remote"):
+        camera.__enter__()
+    assert not any(w[4:6] == b"\x01\x00" and w[7] == 0x92 for w in writes)
+
+
+@pytest.mark.parametrize("jump, notches", [(b"\x03", 3), (b"\xfe", -2), (b"\x01", 1)])
+def test_the_emulated_body_takes_libgphoto2s_multi_notch_jumps(jump, notches):
+    """config.c _put_Sony_ShutterSpeed and _put_sony_value_* send a jump width (u8 posnew - posorig, 0x100 - n
+    downwards) as their first step; a body that behaves as libgphoto2 expects moves that many notches."""
+    camera, body = emulated()
+    with camera:
+        before = body.camera.notch.index
+        camera.session.transact(Operation.SONY_SET_CONTROL_DEVICE_B, Property.SONY_SHUTTER_SPEED, data_out=jump)
+        body.clock.sleep(body.latencies.step_s)
+        camera.refresh()
+        assert body.camera.notch.index == before + notches
+
+
+@pytest.mark.parametrize("operation", [Operation.SONY_SET_CONTROL_DEVICE_B, Operation.SONY_GET_ALL_DEVICE_PROP_DATA])
+def test_a_command_refused_by_a_stalled_out_pipe_is_sent_once_more_after_clearing_it(tmp_path, operation):
+    """usb.c ptp_usb_sendreq: a request whose write fails (GP_ERROR_IO_WRITE) has the OUT endpoint's halt cleared
+    and is written once more - the body never took it, so even a press is safe to send again. A stall at the half
+    press ended the capture."""
+    camera, body = emulated()
+    with camera:
+        body.faults.stall_out_operation = operation
+        writes, original = [], body.bulk_out
+
+        def bulk_out(chunk: bytes) -> None:  # the writes the body took
+            original(chunk)
+            writes.append(bytes(chunk))
+
+        body.bulk_out = bulk_out
+        camera.capture(tmp_path, "f")
+    presses = [(struct.unpack_from("<I", w, 12)[0], struct.unpack_from("<H", writes[i + 1], 12)[0])
+               for i, w in enumerate(writes) if w[6:8] == b"\x07\x92" and w[4:6] == b"\x01\x00"]
+    assert presses == [(0xD2C1, 2), (0xD2C2, 2), (0xD2C2, 1), (0xD2C1, 1)] and body.downloads == 1
+    assert len(body.shots) == 1

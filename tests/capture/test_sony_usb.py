@@ -221,3 +221,20 @@ def test_send_ends_a_transfer_of_whole_packets_with_a_zlp():
         assert len(emulator._out_transfer) == 0
         transport.send(container, 1000)
         assert len(emulator._out_transfer) == 0
+
+
+def test_an_answer_that_takes_15_s_is_waited_for_as_libgphoto2_waits():
+    """library.c camera_init sets the post-init timeout to USB_NORMAL_TIMEOUT, 20 s ("We have cameras where a
+    response takes 15 seconds(!)"); a half press answered after 15 s was a TransportTimeout after 10 s."""
+    camera, body = emulated_a7(slow_operation=Operation.SONY_SET_CONTROL_DEVICE_B)
+    with camera:
+        camera._press(0xD2C1, 2)
+        camera._press(0xD2C1, 1)
+        assert not any("cancelled" in line for line in camera.session.log)
+    assert body.clock.monotonic() >= 15.0
+
+
+def test_an_answer_slower_than_the_timeout_is_still_a_clear_timeout():
+    camera, body = emulated_a7(slow_operation=Operation.SONY_SET_CONTROL_DEVICE_B, slow_answer_s=25.0)
+    with camera, pytest.raises(TransportTimeout, match="within 20 s"):
+        camera._press(0xD2C1, 2)

@@ -3,7 +3,8 @@
 OpenSession goes out with transaction id 0; later transactions count up from 1. A container for an earlier
 transaction (a late answer to one that timed out and was cancelled) is dropped and the next one read, as
 libgphoto2's ptp_transaction_new does ("suspecting old reply"); one for any other transaction is a protocol
-error. DeviceBusy is retried with back-off. A timeout cancels
+error. DeviceBusy is retried with back-off. Each transfer may take TRANSACTION_TIMEOUT_S (20 s, OpenSession 8 s:
+libgphoto2's USB_NORMAL_TIMEOUT and USB_START_TIMEOUT). A timeout cancels
 the transaction (class request 0x64) and waits for the device to report OK; a stalled pipe (EPIPE) or a USB
 I/O error (EIO) before any byte of a container arrived has its halts cleared and the device status checked
 (libgphoto2's recovery). Either is retried, up to ``TRANSIENT_RETRIES`` times, for operations that only read; an
@@ -37,6 +38,9 @@ TRANSIENT_RETRIES = 2  # timeouts and stalls, per transaction
 SESSION_IDS_TRIED = 10  # library.c camera_init: OpenSession answered InvalidTransactionID tries ids 1, 2, ... 10
 STALE_CONTAINERS_MAX = 8  # late containers of earlier transactions dropped while waiting for this one's
 STATUS_WAIT_S = 5.0  # for the device to report OK after a cancel or a cleared stall
+TRANSACTION_TIMEOUT_S = 20.0  # per transfer once the session is open: libgphoto2's USB_NORMAL_TIMEOUT (library.c:
+# "We have cameras where a response takes 15 seconds(!), so make post init timeouts longer")
+OPEN_SESSION_TIMEOUT_S = 8.0  # OpenSession: libgphoto2's USB_START_TIMEOUT (a body that never answers is reset)
 
 
 class ResponseError(CameraError):
@@ -64,7 +68,7 @@ class Clock:
 
 
 class PtpSession:
-    def __init__(self, transport: UsbTransport, *, clock: Clock | None = None, timeout_s: float = 10.0,
+    def __init__(self, transport: UsbTransport, *, clock: Clock | None = None, timeout_s: float = TRANSACTION_TIMEOUT_S,
                  busy_retries: int = 8, busy_backoff_s: float = 0.25):
         self.transport = transport
         self.clock = clock or Clock()
@@ -200,7 +204,7 @@ class PtpSession:
                 self.log.append(f"OpenSession refused session ids {session_id} to "
                                 f"{session_id + SESSION_IDS_TRIED - 1}; reset the device")
                 self._reset_device()
-                self.transact(Operation.OPEN_SESSION, session_id)
+                self.transact(Operation.OPEN_SESSION, session_id, timeout_s=OPEN_SESSION_TIMEOUT_S)
                 self.session_id = session_id
         except ResponseError as error:
             if error.response_code != Response.SESSION_ALREADY_OPEN:  # benign: a previous run left it open
@@ -211,7 +215,7 @@ class PtpSession:
         """OpenSession with ``first_id``, then the next ids while the body answers InvalidTransactionID."""
         for session_id in range(first_id, first_id + SESSION_IDS_TRIED):
             try:
-                self.transact(Operation.OPEN_SESSION, session_id)
+                self.transact(Operation.OPEN_SESSION, session_id, timeout_s=OPEN_SESSION_TIMEOUT_S)
             except ResponseError as error:
                 if error.response_code != Response.INVALID_TRANSACTION_ID or \
                         session_id == first_id + SESSION_IDS_TRIED - 1:

@@ -6,7 +6,11 @@ libgphoto2's ptp_usb_getdata (camlibs/ptp2/usb.c): the first read is one packet'
 container is read until its length field is satisfied however short each read is, bytes read past its end (a
 device that sent no ZLP, or data and response in one transfer) are kept for the next container, and a
 zero-length read (a ZLP left over) is skipped; a data container whose length field is 0xFFFFFFFF (size not
-known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. Events arrive on the
+known in advance) is read until a short packet or a ZLP, as ptp_usb_getdata does. A device that sends a data
+container's 12-byte header in a transfer of its own gets the host's data phases split the same way from then on
+(ptp_usb_getdata sets params->split_header_data, ptp_usb_senddata honours it). A command whose write is refused
+(a stall, or an I/O error with the device still there) is written once more after clearing the OUT endpoint's
+halt, as ptp_usb_sendreq does: the device never took it. Events arrive on the
 interrupt pipe; they are hints only, so a packet that is not a valid event container is dropped, never raised.
 Class requests on the control pipe cancel a transaction, reset the device and read its status. USB failures
 become ``TransportTimeout``, ``Stalled`` (EPIPE, and EIO before any byte of a container arrived: a transfer
@@ -37,6 +41,8 @@ READ_CHUNK_BYTES = 1 << 20  # a whole number of packets for any wMaxPacketSize
 FIRST_READ_MIN_BYTES = 512  # libgphoto2 reads sizeof(PTPUSBBulkContainer) = 512 bytes first
 EMPTY_READS_MAX = 4  # zero-length reads (left-over ZLPs) skipped in a row before giving up
 UNKNOWN_LENGTH = 0xFFFFFFFF  # a data container's length field when the device does not know its size
+EVENT_MAX_BYTES = 24  # an event container: header and 3 parameters (libgphoto2's PTPUSBEventContainer)
+EVENT_REST_TIMEOUT_MS = 150  # for the rest of an event sent in several transfers (libgphoto2's PTP2_FAST_TIMEOUT)
 PROBE_TIMEOUT_MS = 2000  # the status request asking, after an I/O error, whether the device is still there
 _CLASS_OUT = usb.util.build_request_type(usb.util.CTRL_OUT, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
 _CLASS_IN = usb.util.build_request_type(usb.util.CTRL_IN, usb.util.CTRL_TYPE_CLASS, usb.util.CTRL_RECIPIENT_INTERFACE)
@@ -89,6 +95,7 @@ class UsbTransport:
         if self.bulk_in is None or self.bulk_out is None:
             raise CameraError("the PTP interface lacks its bulk endpoints")
         self._pending = b""  # bytes read past the end of the last container, the start of the next one
+        self.split_header_data = False  # the device sent a data container's header alone: split ours too
 
     def _detach_kernel_driver(self) -> None:
         try:
@@ -106,11 +113,39 @@ class UsbTransport:
 
     # -- bulk ------------------------------------------------------------------------------------------------
     def send(self, container: Container, timeout_ms: int) -> None:
-        """Write one container, then a ZLP if its length is a multiple of the packet size."""
+        """Write one container, then a ZLP if its length is a multiple of the packet size. Once the device has sent
+        a data container's 12-byte header alone (``split_header_data``), a data container goes out as its header
+        alone, then its payload (ZLP after the payload when that is whole packets), as libgphoto2's
+        ptp_usb_senddata writes to such a device."""
         packet = container.pack()
+        transfers = [packet]
+        if self.split_header_data and container.kind == ContainerType.DATA and len(packet) > HEADER_SIZE:
+            transfers = [packet[:HEADER_SIZE], packet[HEADER_SIZE:]]
+        if container.kind == ContainerType.COMMAND:
+            self._send_command(packet, timeout_ms)
+            return
         with _usb_errors(self, "sending", timeout_ms):
+            for transfer in transfers:
+                self.bulk_out.write(transfer, timeout_ms)
+            if len(transfers[-1]) % self.bulk_out.wMaxPacketSize == 0:
+                self.bulk_out.write(b"", timeout_ms)
+
+    def _send_command(self, packet: bytes, timeout_ms: int) -> None:
+        """Write a command container (one short packet); a write refused by a stalled pipe or an I/O error, the
+        device still there, has the OUT endpoint's halt cleared and is written once more (libgphoto2 usb.c
+        ptp_usb_sendreq: the device never took the request, so sending it again repeats nothing)."""
+        try:
             self.bulk_out.write(packet, timeout_ms)
-            if len(packet) % self.bulk_out.wMaxPacketSize == 0:
+        except usb.core.USBError as error:
+            translated = self._translate(error, "sending", timeout_ms)
+            if not isinstance(translated, Stalled):
+                raise translated from None
+            with contextlib.suppress(usb.core.USBError):
+                self.device.clear_halt(self.bulk_out)
+            with _usb_errors(self, "sending", timeout_ms):
+                self.bulk_out.write(packet, timeout_ms)
+        if len(packet) % self.bulk_out.wMaxPacketSize == 0:  # only with packets of 32 bytes or less (full speed)
+            with _usb_errors(self, "sending", timeout_ms):
                 self.bulk_out.write(b"", timeout_ms)
 
     def receive(self, timeout_ms: int) -> Container:
@@ -136,6 +171,8 @@ class UsbTransport:
                 chunk = self._read(first_read, timeout_ms)
                 buffer += chunk
             length, kind = parse_header(buffer)[:2]
+            if kind == ContainerType.DATA and length > HEADER_SIZE and len(chunk) == len(buffer) == HEADER_SIZE:
+                self.split_header_data = True  # ptp_usb_getdata's autodetection of split header/data devices
             if length == UNKNOWN_LENGTH and kind == ContainerType.DATA:
                 ended = len(chunk) % packet_size != 0 and len(buffer) != HEADER_SIZE
                 while not ended:
@@ -167,26 +204,39 @@ class UsbTransport:
     def read_event(self, timeout_ms: int) -> Container | None:
         """One event container, or None if none arrives within the timeout or the packet is not a valid event
         (events only wake waits up; libgphoto2's ptp_usb_event reads at most 24 bytes and never fails a
-        capture on a bad one). An I/O error with the device still there is None too, after clearing the
-        interrupt endpoint's halt, as libgphoto2's usb.c clears the IN endpoint's halt after GP_ERROR_IO_READ;
-        one with the device gone is ``Disconnected``."""
+        capture on a bad one). An event container longer than its first transfer is completed from the next
+        ones, EVENT_REST_TIMEOUT_MS each, as ptp_usb_event's "incremental read" does. An I/O error with the
+        device still there is None too, after clearing the interrupt endpoint's halt, as libgphoto2's usb.c
+        clears the IN endpoint's halt after GP_ERROR_IO_READ; one with the device gone is ``Disconnected``."""
         if self.interrupt_in is None:
             return None
-        try:
-            packet = bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, 24), timeout_ms))
-        except usb.core.USBError as error:
-            translated = self._translate(error, "reading events", timeout_ms)
-            if isinstance(translated, TransportTimeout):
-                return None
-            if error.errno == errno.EIO and isinstance(translated, Stalled):
-                with contextlib.suppress(usb.core.USBError):
-                    self.device.clear_halt(self.interrupt_in)
-                return None
-            raise translated from None
+        packet = self._read_interrupt(timeout_ms)
+        if len(packet) >= 8:  # usb.c: an event longer than what was read is read on, to 24 bytes at most
+            length, kind = struct.unpack_from("<IH", packet)
+            while kind == ContainerType.EVENT and len(packet) < min(length, EVENT_MAX_BYTES):
+                rest = self._read_interrupt(EVENT_REST_TIMEOUT_MS)
+                if not rest:
+                    break
+                packet += rest
         try:
             return Container.unpack(packet[:parse_header(packet)[0]])
         except ContainerError:
             return None
+
+    def _read_interrupt(self, timeout_ms: int) -> bytes:
+        """One interrupt-in transfer; empty on a timeout, or on an I/O error with the device still there (after
+        clearing the endpoint's halt); ``Disconnected`` with the device gone."""
+        try:
+            return bytes(self.interrupt_in.read(max(self.interrupt_in.wMaxPacketSize, EVENT_MAX_BYTES), timeout_ms))
+        except usb.core.USBError as error:
+            translated = self._translate(error, "reading events", timeout_ms)
+            if isinstance(translated, TransportTimeout):
+                return b""
+            if error.errno == errno.EIO and isinstance(translated, Stalled):
+                with contextlib.suppress(usb.core.USBError):
+                    self.device.clear_halt(self.interrupt_in)
+                return b""
+            raise translated from None
 
     # -- control (class requests) ---------------------------------------------------------------------------
     def cancel(self, transaction_id: int, timeout_ms: int = 2000) -> None:
