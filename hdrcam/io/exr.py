@@ -1,6 +1,8 @@
 """OpenEXR read and write (linear float images, any channel set, metadata attributes).
 
-Reading returns float32 channels at full resolution. Luminance-chroma files (Y, RY, BY, as written by
+Reading returns float32 channels at full resolution over the display window (the image's frame; the data window
+is the pixels stored): pixels stored beyond the frame (overscan) are dropped, pixels of the frame the file does not
+store are 0. Luminance-chroma files (Y, RY, BY, as written by
 OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
 (Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
 hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
@@ -128,8 +130,7 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
         raise _unreadable(path, error) from None
     if not raw_channels:
         raise InputError(f"{path}: EXR file has no channels")
-    window_min, window_max = header["dataWindow"]
-    height, width = int(window_max[1] - window_min[1] + 1), int(window_max[0] - window_min[0] + 1)
+    height, width = _window_size(header["dataWindow"])
     channels = {name: _full_resolution(pixels, x_sampling, y_sampling, height, width, path, name)
                 for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
     if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
@@ -140,6 +141,12 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
         except ValueError as error:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
+    display_window = header.get("displayWindow", header["dataWindow"])
+    if not _windows_overlap(header["dataWindow"], display_window):
+        raise InputError(f"{path}: no stored pixel lies in the image's frame (data window "
+                         f"{_shown(header['dataWindow'])}, display window {_shown(display_window)})")
+    channels = {name: _in_display_window(plane, header["dataWindow"], display_window)
+                for name, plane in channels.items()}
     attributes = _user_attributes(header)
     if to_rec709 and to_rec709_matrix(header.get("chromaticities")) is not None and {"R", "G", "B"} <= channels.keys():
         rgb = in_rec709(np.stack([channels[name] for name in "RGB"], axis=-1), header["chromaticities"])
@@ -152,17 +159,58 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
 COLOUR_CHANNEL_SETS = ({"R", "G", "B"}, {"Y", "RY", "BY"}, {"Y"})
 
 
+def _window_size(window) -> tuple[int, int]:
+    """(height, width) in pixels of an OpenEXR box ((x min, y min), (x max, y max)), corners inclusive."""
+    (x_min, y_min), (x_max, y_max) = window
+    return int(y_max) - int(y_min) + 1, int(x_max) - int(x_min) + 1
+
+
+def _shown(window) -> str:
+    (x_min, y_min), (x_max, y_max) = window
+    return f"({int(x_min)}, {int(y_min)}) - ({int(x_max)}, {int(y_max)})"
+
+
+def _windows_overlap(data_window, display_window) -> bool:
+    """Whether any pixel of the data window lies in the display window."""
+    (data_x0, data_y0), (data_x1, data_y1) = data_window
+    (frame_x0, frame_y0), (frame_x1, frame_y1) = display_window
+    return max(data_x0, frame_x0) <= min(data_x1, frame_x1) and max(data_y0, frame_y0) <= min(data_y1, frame_y1)
+
+
+def _in_display_window(plane: np.ndarray, data_window, display_window) -> np.ndarray:
+    """A plane stored over ``data_window`` as the image, the ``display_window`` (OpenEXR's Technical Introduction:
+    the display window is the image's boundary, the data window the pixels stored): pixels beyond the frame
+    (overscan) dropped, pixels of the frame that are not stored are 0 (no light: the background the OpenEXR
+    documentation asks to fill them with). The plane itself when the two windows are the same."""
+    (data_x0, data_y0), _ = data_window
+    (frame_x0, frame_y0), _ = display_window
+    if _window_size(data_window) == _window_size(display_window) and (data_x0, data_y0) == (frame_x0, frame_y0):
+        return plane
+    height, width = _window_size(display_window)
+    framed = np.zeros((height, width), plane.dtype)
+    top, left = int(data_y0) - int(frame_y0), int(data_x0) - int(frame_x0)  # the data's corner in the frame
+    rows = slice(max(top, 0), min(top + plane.shape[0], height))
+    columns = slice(max(left, 0), min(left + plane.shape[1], width))
+    framed[rows, columns] = plane[rows.start - top:rows.stop - top, columns.start - left:columns.stop - left]
+    return framed
+
+
 def _image_part(parts):
     """The part of a (multi-part) file that holds the image: the first with colour channels (a renderer may
     store depth or masks first), else the first part (a single-channel file: a height map); ValueError for a
     file whose headers were read but no part decoded (OpenEXR's binding returns none for truncated pixel data)."""
     if not parts:
         raise ValueError("its pixel data cannot be decoded: truncated or damaged")
+    return parts[_image_index([set(part.channels) for part in parts])]
+
+
+def _image_index(channel_names: list[set[str]]) -> int:
+    """The index of the image among parts with these channel names (see _image_part)."""
     for channel_set in COLOUR_CHANNEL_SETS:
-        for part in parts:
-            if channel_set <= set(part.channels):
-                return part
-    return parts[0]
+        for index, names in enumerate(channel_names):
+            if channel_set <= names:
+                return index
+    return 0
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
@@ -186,9 +234,14 @@ def _check_decoded_size(path: Path, headers: list[dict]) -> None:
     """Refuse, from the headers alone, an image whose pixels would not fit in memory (every part is decoded)."""
     sizes = []
     for header in headers:
-        window_min, window_max = header["dataWindow"]
-        sizes.append((int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1,
-                      max(len(header.get("channels", ())), 1)))
+        height, width = _window_size(header["dataWindow"])
+        sizes.append((height, width, max(len(header.get("channels", ())), 1)))
+    image = headers[_image_index([{channel.name for channel in header.get("channels", ())} for header in headers])]
+    frame_height, frame_width = _window_size(image.get("displayWindow", image["dataWindow"]))
+    channel_count = max(len(image.get("channels", ())), 1)
+    if frame_height * frame_width > np.prod(_window_size(image["dataWindow"])):  # returned over its display window
+        check_image_size(f"{path}: {channel_count} channels over the display window", frame_height, frame_width,
+                         channel_count * DECODED_BYTES_PER_SAMPLE, "use a smaller image")
     if len(sizes) == 1:
         height, width, channels = sizes[0]
         check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,
