@@ -2,7 +2,8 @@
 
 Reading returns float32 channels at full resolution over the display window (the image's frame; the data window
 is the pixels stored): pixels stored beyond the frame (overscan) are dropped, pixels of the frame the file does not
-store are 0. Luminance-chroma files (Y, RY, BY, as written by
+store are 0. A file whose colour is in a named layer only ("beauty.R", Blender's "ViewLayer.Combined.R") is
+read from that layer (_with_image_layer_as_rgb). Luminance-chroma files (Y, RY, BY, as written by
 OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
 (Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
 hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
@@ -133,6 +134,7 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
     height, width = _window_size(header["dataWindow"])
     channels = {name: _full_resolution(pixels, x_sampling, y_sampling, height, width, path, name)
                 for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
+    channels = _with_image_layer_as_rgb(path, channels)
     if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
         chromaticities = header.get("chromaticities", REC709_CHROMATICITIES)
         try:
@@ -205,12 +207,43 @@ def _image_part(parts):
 
 
 def _image_index(channel_names: list[set[str]]) -> int:
-    """The index of the image among parts with these channel names (see _image_part)."""
+    """The index of the image among parts with these channel names (see _image_part); a part whose colour is in
+    a named layer only (beauty.R, ...) after those with unprefixed colour channels."""
     for channel_set in COLOUR_CHANNEL_SETS:
         for index, names in enumerate(channel_names):
             if channel_set <= names:
                 return index
-    return 0
+    return next((index for index, names in enumerate(channel_names) if _rgb_layers(names)), 0)
+
+
+IMAGE_LAYER_NAMES = ("combined", "beauty", "rgba")  # Blender's render result (ViewLayer.Combined), others' beauty
+
+
+def _rgb_layers(names) -> list[str]:
+    """The layers (OpenEXR's naming: "layer.R"; the prefix with its dot, "" for unprefixed R, G, B) that hold R,
+    G and B channels."""
+    prefixes = {name[:-1] for name in names if name.endswith(("R", "G", "B")) and (len(name) == 1 or name[-2] == ".")}
+    return sorted(prefix for prefix in prefixes if all(prefix + colour in names for colour in "RGB"))
+
+
+def _with_image_layer_as_rgb(path: Path, channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``channels`` with the image's layer as R, G, B (and A): unprefixed R, G, B when there are any, else the one
+    layer with R, G, B (Blender, Nuke and renderers' multi-layer files: "beauty.R", "ViewLayer.Combined.R"), or of
+    several the one named like an image (IMAGE_LAYER_NAMES); InputError naming the layers when that leaves
+    several. Channels unchanged when no layer holds colour."""
+    layers = _rgb_layers(channels)
+    if not layers or "" in layers or {"Y", "RY", "BY"} <= channels.keys() or "Y" in channels:
+        return channels
+    if len(layers) > 1:
+        named = [layer for layer in layers if layer[:-1].rsplit(".", 1)[-1].lower() in IMAGE_LAYER_NAMES]
+        if len(named) != 1:
+            shown = ", ".join(layer[:-1] for layer in layers)
+            raise InputError(f"{path}: colour layers {shown} and no unprefixed R, G, B: which is the image is not "
+                             "known; save the image's layer as R, G, B")
+        layers = named
+    renamed = {colour: layers[0] + colour for colour in "RGBA" if layers[0] + colour in channels}
+    return {**{colour: channels[name] for colour, name in renamed.items()},
+            **{name: plane for name, plane in channels.items() if name not in renamed.values()}}
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"

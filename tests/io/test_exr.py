@@ -359,3 +359,40 @@ def test_a_small_file_declaring_a_huge_display_window_is_refused_before_decoding
     OpenEXR.File(header, {"Y": np.ones((1, 1), np.float32)}).write(str(tmp_path / "huge.exr"))
     with pytest.raises(TooLargeError, match=r"huge.exr: 1 channels over the display window \(100000 x 100000 px\)"):
         read_exr(tmp_path / "huge.exr")
+
+
+@pytest.mark.parametrize("layers, image", [
+    (("beauty",), "beauty"),  # one layer, prefixed (Nuke's and renderers' layer naming)
+    (("ViewLayer.Combined", "ViewLayer.DiffCol"), "ViewLayer.Combined"),  # Blender's multi-layer render result
+])
+def test_colour_in_a_named_layer_is_read_from_the_images_layer(tmp_path, layers, image):
+    """A file whose colour is in layers only (beauty.R, ViewLayer.Combined.R) was refused as having no R, G, B."""
+    rng = np.random.default_rng(3)
+    planes = {layer: rng.uniform(0, 4, (6, 8, 3)).astype(np.float32) for layer in layers}
+    channels = {f"{layer}.{colour}": np.ascontiguousarray(rgb[..., i])
+                for layer, rgb in planes.items() for i, colour in enumerate("RGB")}
+    channels[f"{image}.A"] = np.ones((6, 8), np.float32)
+    channels["ViewLayer.Depth.Z"] = np.full((6, 8), 7.0, np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "layers.exr"))
+    read = read_exr(tmp_path / "layers.exr")
+    np.testing.assert_array_equal(read.rgb(), planes[image])
+    np.testing.assert_array_equal(read.channels["A"], 1.0)
+
+
+def test_several_colour_layers_none_of_them_the_image_are_refused_naming_them(tmp_path):
+    channels = {f"{layer}.{colour}": np.ones((4, 4), np.float32)
+                for layer in ("diffuse", "specular") for colour in "RGB"}
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "passes.exr"))
+    with pytest.raises(InputError, match=r"passes.exr: colour layers diffuse, specular and no unprefixed R, G, B"):
+        read_exr(tmp_path / "passes.exr")
+
+
+def test_a_multi_part_file_whose_image_is_a_named_layer_is_read_from_that_part(tmp_path):
+    rgb = np.random.default_rng(4).uniform(0, 4, (6, 8, 3)).astype(np.float32)
+    header = {"type": OpenEXR.scanlineimage}
+    depth = OpenEXR.Part(dict(header, name="depth"), {"depth.Z": np.ones((6, 8), np.float32)})
+    image = OpenEXR.Part(dict(header, name="beauty"), {f"beauty.{name}": np.ascontiguousarray(rgb[..., i])
+                                                       for i, name in enumerate("RGB")})
+    with OpenEXR.File([depth, image]) as exr:
+        exr.write(str(tmp_path / "parts.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
