@@ -50,8 +50,9 @@ def read_radiance(path: Path) -> np.ndarray:
     the file and what is wrong with it otherwise."""
     data = Path(path).read_bytes()
     header_end = data.find(b"\n\n", 0, MAX_HEADER_BYTES)
-    if not data.startswith(RADIANCE_MAGIC) or header_end < 0:
-        raise InputError(f"{path}: not a Radiance file (no '#?' magic line and header ending in an empty line)")
+    crlf_end = data.find(b"\r\n\r\n", 0, header_end if header_end >= 0 else MAX_HEADER_BYTES)
+    if not data.startswith(RADIANCE_MAGIC) or header_end < 0 or crlf_end >= 0:
+        raise InputError(f"{path}: {_not_radiance_reason(data, crlf_end >= 0)}")
     lines = data[:header_end].split(b"\n")[1:]
     variables = [line.split(b"=", 1) for line in lines if b"=" in line and not line.startswith(b"#")]
     resolution_end = data.find(b"\n", header_end + 2)
@@ -72,6 +73,17 @@ def read_radiance(path: Path) -> np.ndarray:
     if x_sign == b"-":
         values = values[:, ::-1]
     return _corrected(path, np.ascontiguousarray(values), image_format, variables)
+
+
+def _not_radiance_reason(data: bytes, crlf: bool) -> str:
+    """Why ``data`` (a file's bytes) is not read as Radiance: no magic line, a header ending in CR LF CR LF
+    (``crlf``; the LF LF that ends a header may then turn up in the pixels), or no empty line ending it."""
+    if not data.startswith(RADIANCE_MAGIC):
+        return "not a Radiance file (it does not start with the '#?' magic line)"
+    if crlf:
+        return ("Radiance header lines end in CR LF, not LF: a copy made in text mode, which also changes the binary "
+                "pixel data; copy the original file in binary mode")
+    return "not a Radiance file (no empty line ends its header)"
 
 
 def _pixel_values(path: Path, pixels: bytes, count: int, length: int) -> np.ndarray:

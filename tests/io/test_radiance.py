@@ -162,3 +162,21 @@ def test_a_flat_file_cut_in_its_pixels_names_the_scanline(tmp_path):
     with pytest.raises(InputError, match=r"cut.hdr: Radiance pixel data cannot be decoded: scanline 6 of 6: the "
                                          r"file ends inside it \(truncated\)"):
         read_hdr_image(path)
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"#?RADIANCE\r\nFORMAT=32-bit_rle_rgbe\r\n\r\n-Y 6 +X 9\r\n" + bytes(216),
+     r"crlf.hdr: Radiance header lines end in CR LF, not LF: a copy made in text mode"),
+    (b"#?RADIANCE\r\nFORMAT=32-bit_rle_rgbe\r\n\r\n-Y 6 +X 9\r\n" + bytes(100) + b"\n\n" + bytes(114),
+     r"crlf.hdr: Radiance header lines end in CR LF"),  # LF LF in the pixels: it was read as a resolution line
+    (b"P6\n9 6\n255\n" + bytes(162), r"crlf.hdr: not a Radiance file \(it does not start with the '#\?' magic line\)"),
+    (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n-Y 6 +X 9\n", r"crlf.hdr: not a Radiance file \(no empty line ends its"),
+])
+def test_a_file_that_is_not_radiance_says_what_it_lacks(tmp_path, data, message):
+    """A header with CR LF line ends (a text-mode copy) was called a file with 'no '#?' magic line and header
+    ending in an empty line', though it has the magic line."""
+    from hdrcam.io.radiance import read_radiance
+
+    (tmp_path / "crlf.hdr").write_bytes(data)
+    with pytest.raises(InputError, match=message):
+        read_radiance(tmp_path / "crlf.hdr")
