@@ -93,6 +93,22 @@ def read_exr_attributes(path: Path) -> dict[str, Any]:
         raise _unreadable(path, error) from None
 
 
+LOSSY_COMPRESSIONS = {OpenEXR.B44_COMPRESSION: "B44", OpenEXR.B44A_COMPRESSION: "B44A",
+                      OpenEXR.DWAA_COMPRESSION: "DWAA", OpenEXR.DWAB_COMPRESSION: "DWAB",
+                      OpenEXR.PXR24_COMPRESSION: "PXR24"}  # B44 only on half channels, PXR24 only on float32
+
+
+def lossy_compression(path: Path) -> str | None:
+    """The name of the lossy compression (B44, B44A, DWAA, DWAB, PXR24) of an EXR's image part, None for a
+    lossless one or a header that cannot be read."""
+    try:
+        headers = _part_headers(Path(path).read_bytes())
+    except _UNREADABLE:
+        return None
+    header = headers[_image_index([{channel.name for channel in part.get("channels", ())} for part in headers])]
+    return LOSSY_COMPRESSIONS.get(header.get("compression"))
+
+
 def _header(data: bytes) -> dict[str, Any]:
     return _part_headers(data)[0]
 
