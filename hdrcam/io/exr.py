@@ -184,12 +184,13 @@ def _window_size(window) -> tuple[int, int]:
 
 
 def _shown(window) -> str:
+    """An OpenEXR box as "(x min, y min) - (x max, y max)", in pixels, for messages."""
     (x_min, y_min), (x_max, y_max) = window
     return f"({int(x_min)}, {int(y_min)}) - ({int(x_max)}, {int(y_max)})"
 
 
 def _windows_overlap(data_window, display_window) -> bool:
-    """Whether any pixel of the data window lies in the display window."""
+    """Whether any pixel of the data window lies in the display window (boxes in pixels, corners inclusive)."""
     (data_x0, data_y0), (data_x1, data_y1) = data_window
     (frame_x0, frame_y0), (frame_x1, frame_y1) = display_window
     return max(data_x0, frame_x0) <= min(data_x1, frame_x1) and max(data_y0, frame_y0) <= min(data_y1, frame_y1)
