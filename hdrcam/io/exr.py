@@ -1,6 +1,9 @@
 """OpenEXR read and write (linear float images, any channel set, metadata attributes).
 
-Reading returns float32 channels at full resolution. Luminance-chroma files (Y, RY, BY, as written by
+Reading returns float32 channels at full resolution over the display window (the image's frame; the data window
+is the pixels stored): pixels stored beyond the frame (overscan) are dropped, pixels of the frame the file does not
+store are 0. A file whose colour is in a named layer only ("beauty.R", Blender's "ViewLayer.Combined.R") is
+read from that layer (_with_image_layer_as_rgb). Luminance-chroma files (Y, RY, BY, as written by
 OpenEXR's RgbaYca interface, chroma subsampled 2x2) are converted to RGB with the file's chromaticities
 (Rec. 709 / D65 when absent). R, G, B come back in Rec. 709 primaries with a D65 white (linear sRGB, what
 hdrcam's scenes and frames are): a file whose ``chromaticities`` attribute names other primaries (ACES AP0,
@@ -90,6 +93,22 @@ def read_exr_attributes(path: Path) -> dict[str, Any]:
         raise _unreadable(path, error) from None
 
 
+LOSSY_COMPRESSIONS = {OpenEXR.B44_COMPRESSION: "B44", OpenEXR.B44A_COMPRESSION: "B44A",
+                      OpenEXR.DWAA_COMPRESSION: "DWAA", OpenEXR.DWAB_COMPRESSION: "DWAB",
+                      OpenEXR.PXR24_COMPRESSION: "PXR24"}  # B44 only on half channels, PXR24 only on float32
+
+
+def lossy_compression(path: Path) -> str | None:
+    """The name of the lossy compression (B44, B44A, DWAA, DWAB, PXR24) of an EXR's image part, None for a
+    lossless one or a header that cannot be read."""
+    try:
+        headers = _part_headers(Path(path).read_bytes())
+    except _UNREADABLE:
+        return None
+    header = headers[_image_index([{channel.name for channel in part.get("channels", ())} for part in headers])]
+    return LOSSY_COMPRESSIONS.get(header.get("compression"))
+
+
 def _header(data: bytes) -> dict[str, Any]:
     return _part_headers(data)[0]
 
@@ -128,10 +147,10 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
         raise _unreadable(path, error) from None
     if not raw_channels:
         raise InputError(f"{path}: EXR file has no channels")
-    window_min, window_max = header["dataWindow"]
-    height, width = int(window_max[1] - window_min[1] + 1), int(window_max[0] - window_min[0] + 1)
+    height, width = _window_size(header["dataWindow"])
     channels = {name: _full_resolution(pixels, x_sampling, y_sampling, height, width, path, name)
                 for name, (pixels, x_sampling, y_sampling) in raw_channels.items()}
+    channels = _with_image_layer_as_rgb(path, channels)
     if {"Y", "RY", "BY"} <= channels.keys() and not {"R", "G", "B"} & channels.keys():
         chromaticities = header.get("chromaticities", REC709_CHROMATICITIES)
         try:
@@ -140,6 +159,12 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
         except ValueError as error:
             raise InputError(f"{path}: luminance-chroma file with unusable {error}") from None
         channels = {"R": red, "G": green, "B": blue, **channels}
+    display_window = header.get("displayWindow", header["dataWindow"])
+    if not _windows_overlap(header["dataWindow"], display_window):
+        raise InputError(f"{path}: no stored pixel lies in the image's frame (data window "
+                         f"{_shown(header['dataWindow'])}, display window {_shown(display_window)})")
+    channels = {name: _in_display_window(plane, header["dataWindow"], display_window)
+                for name, plane in channels.items()}
     attributes = _user_attributes(header)
     if to_rec709 and to_rec709_matrix(header.get("chromaticities")) is not None and {"R", "G", "B"} <= channels.keys():
         rgb = in_rec709(np.stack([channels[name] for name in "RGB"], axis=-1), header["chromaticities"])
@@ -152,17 +177,90 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
 COLOUR_CHANNEL_SETS = ({"R", "G", "B"}, {"Y", "RY", "BY"}, {"Y"})
 
 
+def _window_size(window) -> tuple[int, int]:
+    """(height, width) in pixels of an OpenEXR box ((x min, y min), (x max, y max)), corners inclusive."""
+    (x_min, y_min), (x_max, y_max) = window
+    return int(y_max) - int(y_min) + 1, int(x_max) - int(x_min) + 1
+
+
+def _shown(window) -> str:
+    """An OpenEXR box as "(x min, y min) - (x max, y max)", in pixels, for messages."""
+    (x_min, y_min), (x_max, y_max) = window
+    return f"({int(x_min)}, {int(y_min)}) - ({int(x_max)}, {int(y_max)})"
+
+
+def _windows_overlap(data_window, display_window) -> bool:
+    """Whether any pixel of the data window lies in the display window (boxes in pixels, corners inclusive)."""
+    (data_x0, data_y0), (data_x1, data_y1) = data_window
+    (frame_x0, frame_y0), (frame_x1, frame_y1) = display_window
+    return max(data_x0, frame_x0) <= min(data_x1, frame_x1) and max(data_y0, frame_y0) <= min(data_y1, frame_y1)
+
+
+def _in_display_window(plane: np.ndarray, data_window, display_window) -> np.ndarray:
+    """A plane stored over ``data_window`` as the image, the ``display_window`` (OpenEXR's Technical Introduction:
+    the display window is the image's boundary, the data window the pixels stored): pixels beyond the frame
+    (overscan) dropped, pixels of the frame that are not stored are 0 (no light: the background the OpenEXR
+    documentation asks to fill them with). The plane itself when the two windows are the same."""
+    (data_x0, data_y0), _ = data_window
+    (frame_x0, frame_y0), _ = display_window
+    if _window_size(data_window) == _window_size(display_window) and (data_x0, data_y0) == (frame_x0, frame_y0):
+        return plane
+    height, width = _window_size(display_window)
+    framed = np.zeros((height, width), plane.dtype)
+    top, left = int(data_y0) - int(frame_y0), int(data_x0) - int(frame_x0)  # the data's corner in the frame
+    rows = slice(max(top, 0), min(top + plane.shape[0], height))
+    columns = slice(max(left, 0), min(left + plane.shape[1], width))
+    framed[rows, columns] = plane[rows.start - top:rows.stop - top, columns.start - left:columns.stop - left]
+    return framed
+
+
 def _image_part(parts):
     """The part of a (multi-part) file that holds the image: the first with colour channels (a renderer may
     store depth or masks first), else the first part (a single-channel file: a height map); ValueError for a
     file whose headers were read but no part decoded (OpenEXR's binding returns none for truncated pixel data)."""
     if not parts:
         raise ValueError("its pixel data cannot be decoded: truncated or damaged")
+    return parts[_image_index([set(part.channels) for part in parts])]
+
+
+def _image_index(channel_names: list[set[str]]) -> int:
+    """The index of the image among parts with these channel names (see _image_part); a part whose colour is in
+    a named layer only (beauty.R, ...) after those with unprefixed colour channels."""
     for channel_set in COLOUR_CHANNEL_SETS:
-        for part in parts:
-            if channel_set <= set(part.channels):
-                return part
-    return parts[0]
+        for index, names in enumerate(channel_names):
+            if channel_set <= names:
+                return index
+    return next((index for index, names in enumerate(channel_names) if _rgb_layers(names)), 0)
+
+
+IMAGE_LAYER_NAMES = ("combined", "beauty", "rgba")  # Blender's render result (ViewLayer.Combined), others' beauty
+
+
+def _rgb_layers(names) -> list[str]:
+    """The layers (OpenEXR's naming: "layer.R"; the prefix with its dot, "" for unprefixed R, G, B) that hold R,
+    G and B channels."""
+    prefixes = {name[:-1] for name in names if name.endswith(("R", "G", "B")) and (len(name) == 1 or name[-2] == ".")}
+    return sorted(prefix for prefix in prefixes if all(prefix + colour in names for colour in "RGB"))
+
+
+def _with_image_layer_as_rgb(path: Path, channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``channels`` with the image's layer as R, G, B (and A): unprefixed R, G, B when there are any, else the one
+    layer with R, G, B (Blender, Nuke and renderers' multi-layer files: "beauty.R", "ViewLayer.Combined.R"), or of
+    several the one named like an image (IMAGE_LAYER_NAMES); InputError naming the layers when that leaves
+    several. Channels unchanged when no layer holds colour."""
+    layers = _rgb_layers(channels)
+    if not layers or "" in layers or {"Y", "RY", "BY"} <= channels.keys() or "Y" in channels:
+        return channels
+    if len(layers) > 1:
+        named = [layer for layer in layers if layer[:-1].rsplit(".", 1)[-1].lower() in IMAGE_LAYER_NAMES]
+        if len(named) != 1:
+            shown = ", ".join(layer[:-1] for layer in layers)
+            raise InputError(f"{path}: colour layers {shown} and no unprefixed R, G, B: which is the image is not "
+                             "known; save the image's layer as R, G, B")
+        layers = named
+    renamed = {colour: layers[0] + colour for colour in "RGBA" if layers[0] + colour in channels}
+    return {**{colour: channels[name] for colour, name in renamed.items()},
+            **{name: plane for name, plane in channels.items() if name not in renamed.values()}}
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
@@ -186,9 +284,14 @@ def _check_decoded_size(path: Path, headers: list[dict]) -> None:
     """Refuse, from the headers alone, an image whose pixels would not fit in memory (every part is decoded)."""
     sizes = []
     for header in headers:
-        window_min, window_max = header["dataWindow"]
-        sizes.append((int(window_max[1]) - int(window_min[1]) + 1, int(window_max[0]) - int(window_min[0]) + 1,
-                      max(len(header.get("channels", ())), 1)))
+        height, width = _window_size(header["dataWindow"])
+        sizes.append((height, width, max(len(header.get("channels", ())), 1)))
+    image = headers[_image_index([{channel.name for channel in header.get("channels", ())} for header in headers])]
+    frame_height, frame_width = _window_size(image.get("displayWindow", image["dataWindow"]))
+    channel_count = max(len(image.get("channels", ())), 1)
+    if frame_height * frame_width > np.prod(_window_size(image["dataWindow"])):  # returned over its display window
+        check_image_size(f"{path}: {channel_count} channels over the display window", frame_height, frame_width,
+                         channel_count * DECODED_BYTES_PER_SAMPLE, "use a smaller image")
     if len(sizes) == 1:
         height, width, channels = sizes[0]
         check_image_size(f"{path}: {channels} channels", height, width, channels * DECODED_BYTES_PER_SAMPLE,

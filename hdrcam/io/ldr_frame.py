@@ -9,7 +9,8 @@
   file's EXIF Orientation code, for previews.
 - EXR: linear RGB taken as is (1.0 = white), in the primaries it was stored in (a ``chromaticities``
   attribute is not applied: the frame is clipped per stored channel, which a matrix would mix, and the network
-  works in the camera's RGB; TIFF and PNG primaries are not applied either).
+  works in the camera's RGB; TIFF and PNG primaries are not applied either). A frame whose lossy compression
+  (DWAA, DWAB, B44, ...) rang past white or black is refused naming the codec.
 - Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance).
 - 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
   clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs, PNGs whose colour chunks declare
@@ -31,7 +32,7 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
-from hdrcam.io.exr import exr_orientation, is_exr_file, read_exr
+from hdrcam.io.exr import exr_orientation, is_exr_file, lossy_compression, read_exr
 from hdrcam.io.file_magic import starts_with
 from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
@@ -59,10 +60,10 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
-    suffix, orientation = path.suffix.lower(), 1
+    suffix, orientation, lossy = path.suffix.lower(), 1, None
     if suffix == ".exr" or is_exr_file(path):
         image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
-        rgb, orientation = image.rgb(), exr_orientation(image.attributes)
+        rgb, orientation, lossy = image.rgb(), exr_orientation(image.attributes), lossy_compression(path)
     elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
         rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)
     elif suffix in GAMMA_SUFFIXES or starts_with(path, JPEG_MAGIC):
@@ -86,13 +87,29 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         rgb, orientation = raw_relative_rgb(raw, demosaic_method), raw.metadata.orientation
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
-    if float(rgb.min()) < -NEGATIVE_LDR_TOLERANCE:
-        raise InputError(f"{path}: values down to {float(rgb.min()):.4g} of white; a captured frame's noise stays "
-                         f"within {NEGATIVE_LDR_TOLERANCE:g} of black - check how the file was made")
-    if float(rgb.max()) > LDR_TOLERANCE:
-        raise InputError(f"{path}: values reach {float(rgb.max()):.4g}, above white (1.0): this is not an LDR "
-                         "capture (give the camera frame, not an HDR image)")
+    lowest, highest = float(rgb.min()), float(rgb.max())
+    if lowest < -NEGATIVE_LDR_TOLERANCE:
+        raise InputError(f"{path}: values down to {lowest:.4g} of white; " + (_lossy_advice(lossy, -lowest) or
+                         f"a captured frame's noise stays within {NEGATIVE_LDR_TOLERANCE:g} of black - check how the "
+                         "file was made"))
+    if highest > LDR_TOLERANCE:
+        raise InputError(f"{path}: values reach {highest:.4g}, above white (1.0): " + (
+            _lossy_advice(lossy, highest - 1.0) or "this is not an LDR capture (give the camera frame, not an HDR "
+                                                   "image)"))
     return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
+
+
+LOSSY_RINGING = 0.1  # of white: how far beyond black or white a lossy codec's ringing is taken to reach
+
+
+def _lossy_advice(compression: str | None, beyond: float) -> str:
+    """What to do about a frame ``beyond`` (of white) past black or white whose EXR ``compression`` is lossy: its
+    codec's ringing, not the capture, put the values there (DWAA measured 2 % above white); "" for a lossless
+    file or values further out (an HDR image)."""
+    if compression is None or beyond > LOSSY_RINGING:
+        return ""
+    return (f"the EXR is {compression}-compressed, a lossy codec whose ringing passes white and black and whose "
+            "clipped pixels are no longer exact; save the frame losslessly (ZIP, PIZ or none)")
 
 
 def _rgb_samples(path: Path, suffix: str) -> np.ndarray:

@@ -1,12 +1,12 @@
-"""Radiance RGBE / XYZE (.hdr, .pic) images as linear Rec. 709 / D65 radiance, decoded by OpenCV.
+"""Radiance RGBE / XYZE (.hdr, .pic) images as linear Rec. 709 / D65 radiance.
 
-OpenCV decodes the pixel data (flat and run-length scanlines) but only a header of its own standard form: it
-refused any other orientation, a file without a FORMAT line (Radiance's default is RGBE) and XYZE data, and it
-ignores the header's corrections. This module reads the header (Radiance's file format, "Radiance File
-Formats", G. Ward): the magic line ``#?...``, variable lines up to an empty line, then the resolution string
-``<sign><axis> N1 <sign><axis> N2`` (the first axis the scanlines' order, the second the pixels' within one;
-``-Y N +X M`` is top to bottom, left to right). The data are handed to OpenCV behind a standard header and the
-decoded array turned and mirrored into the image, then:
+This module reads the header (Radiance's file format, "Radiance File Formats", G. Ward): the magic line
+``#?...``, variable lines up to an empty line, then the resolution string ``<sign><axis> N1 <sign><axis> N2``
+(the first axis the scanlines' order, the second the pixels' within one; ``-Y N +X M`` is top to bottom, left
+to right). The pixels are decoded by OpenCV behind a standard header (OpenCV reads no orientation but the
+standard one, no file without a FORMAT line and no XYZE) where they start new-style run-length, else, and where
+OpenCV fails, by hdrcam.io.rgbe (flat and old-style run-length scanlines, which OpenCV refused), both as
+m * 2 ** (e - 136), then turned and mirrored into the image, then:
 
 - ``FORMAT=32-bit_rle_xyze``: CIE XYZ with Radiance's equal-energy white, converted to Rec. 709 / D65;
 - ``EXPOSURE=`` (all such lines multiply) and ``COLORCORR=`` (per channel): the file's values are radiance
@@ -27,6 +27,8 @@ from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, in_rec709
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.file_magic import starts_with
+from hdrcam.io.rgbe import (MAX_RUN_LENGTH_SCANLINE, MIN_RUN_LENGTH_SCANLINE, DamagedPixels, colr_values,
+                            decode_scanlines)
 from hdrcam.limits import check_image_size
 
 RADIANCE_SUFFIXES = (".hdr", ".pic")  # .pic: Radiance's own
@@ -48,8 +50,9 @@ def read_radiance(path: Path) -> np.ndarray:
     the file and what is wrong with it otherwise."""
     data = Path(path).read_bytes()
     header_end = data.find(b"\n\n", 0, MAX_HEADER_BYTES)
-    if not data.startswith(RADIANCE_MAGIC) or header_end < 0:
-        raise InputError(f"{path}: not a Radiance file (no '#?' magic line and header ending in an empty line)")
+    crlf_end = data.find(b"\r\n\r\n", 0, header_end if header_end >= 0 else MAX_HEADER_BYTES)
+    if not data.startswith(RADIANCE_MAGIC) or header_end < 0 or crlf_end >= 0:
+        raise InputError(f"{path}: {_not_radiance_reason(data, crlf_end >= 0)}")
     lines = data[:header_end].split(b"\n")[1:]
     variables = [line.split(b"=", 1) for line in lines if b"=" in line and not line.startswith(b"#")]
     resolution_end = data.find(b"\n", header_end + 2)
@@ -61,13 +64,7 @@ def read_radiance(path: Path) -> np.ndarray:
     major_sign, major_axis, major, minor_sign, _, minor = match.groups()
     height, width = (int(major), int(minor)) if major_axis == b"Y" else (int(minor), int(major))
     check_image_size(str(path), height, width, DECODED_BYTES_PER_PIXEL, "give a smaller image")
-    standard = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (int(major), int(minor))
-    with c_stderr_silenced():  # OpenCV prints its own lines for damaged data
-        decoded = cv2.imdecode(np.frombuffer(standard + data[resolution_end + 1:], np.uint8),
-                               cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
-    if decoded is None:
-        raise InputError(f"{path}: Radiance pixel data cannot be decoded (truncated or damaged?)")
-    values = cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB).astype(np.float32)
+    values = _pixel_values(path, data[resolution_end + 1:], int(major), int(minor))
     x_sign, y_sign = (minor_sign, major_sign) if major_axis == b"Y" else (major_sign, minor_sign)
     if major_axis == b"X":  # scanlines run down the columns
         values = values.transpose(1, 0, 2)
@@ -76,6 +73,35 @@ def read_radiance(path: Path) -> np.ndarray:
     if x_sign == b"-":
         values = values[:, ::-1]
     return _corrected(path, np.ascontiguousarray(values), image_format, variables)
+
+
+def _not_radiance_reason(data: bytes, crlf: bool) -> str:
+    """Why ``data`` (a file's bytes) is not read as Radiance: no magic line, a header ending in CR LF CR LF
+    (``crlf``; the LF LF that ends a header may then turn up in the pixels), or no empty line ending it."""
+    if not data.startswith(RADIANCE_MAGIC):
+        return "not a Radiance file (it does not start with the '#?' magic line)"
+    if crlf:
+        return ("Radiance header lines end in CR LF, not LF: a copy made in text mode, which also changes the binary "
+                "pixel data; copy the original file in binary mode")
+    return "not a Radiance file (no empty line ends its header)"
+
+
+def _pixel_values(path: Path, pixels: bytes, count: int, length: int) -> np.ndarray:
+    """``count`` scanlines of ``length`` pixels as count x length x 3 float32 values (m * 2 ** (e - 136)), in the
+    order stored: by OpenCV (C speed) when the first scanline is new-style run-length, as in files of Radiance and
+    most writers, and it decodes them; by hdrcam.io.rgbe otherwise (flat and old-style run-length scanlines,
+    which OpenCV refused, mixed encodings) and to name the damage of a file OpenCV cannot decode."""
+    if MIN_RUN_LENGTH_SCANLINE <= length <= MAX_RUN_LENGTH_SCANLINE and pixels[:2] == b"\x02\x02" and \
+            len(pixels) > 2 and pixels[2] < 128:
+        standard = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (count, length)
+        with c_stderr_silenced():  # OpenCV prints its own lines for damaged data
+            decoded = cv2.imdecode(np.frombuffer(standard + pixels, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        if decoded is not None:
+            return cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB).astype(np.float32)
+    try:
+        return colr_values(decode_scanlines(pixels, count, length))
+    except DamagedPixels as error:
+        raise InputError(f"{path}: Radiance pixel data cannot be decoded: {error}") from None
 
 
 def _format(path: Path, variables: list[list[bytes]]) -> str:

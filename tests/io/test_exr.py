@@ -318,3 +318,81 @@ def test_a_deep_exr_is_refused_as_deep(tmp_path):
                  {"A": OpenEXR.Channel(samples)}).write(str(tmp_path / "deep.exr"))
     with pytest.raises(InputError, match="deep image"):
         read_exr(tmp_path / "deep.exr")
+
+
+def _box(x_min: int, y_min: int, x_max: int, y_max: int):
+    return (np.array([x_min, y_min], np.int32), np.array([x_max, y_max], np.int32))
+
+
+@pytest.mark.parametrize("data_window", [
+    (8, 5, 19, 12),  # a crop (a renderer's bounding box), partly beyond the frame's bottom
+    (-6, -4, 29, 19),  # overscan: stored pixels beyond the frame on every side
+    (-3, 7, 6, 30),  # only a corner of the stored pixels lies in the frame
+])
+def test_the_image_is_the_display_window_whatever_the_data_window(tmp_path, data_window):
+    """OpenEXR's display window is the image's frame and its data window the pixels stored; the data window was
+    returned as the image (a crop came back as its bounding box, overscan as a larger image)."""
+    x_min, y_min, x_max, y_max = data_window
+    world = np.random.default_rng(2).uniform(0.5, 4, (50, 50, 3)).astype(np.float32)  # pixel (x, y) at [y + 10, x + 10]
+    stored = world[y_min + 10:y_max + 11, x_min + 10:x_max + 11]
+    header = {"type": OpenEXR.scanlineimage, "compression": OpenEXR.ZIP_COMPRESSION,
+              "dataWindow": _box(*data_window), "displayWindow": _box(0, 0, 19, 9)}
+    OpenEXR.File(header, {name: np.ascontiguousarray(stored[..., i]) for i, name in enumerate("RGB")}).write(
+        str(tmp_path / "window.exr"))
+    y, x = np.mgrid[:10, :20]
+    inside = (x >= x_min) & (x <= x_max) & (y >= y_min) & (y <= y_max)
+    expected = np.where(inside[..., None], world[10:20, 10:30], 0)
+    np.testing.assert_array_equal(read_exr(tmp_path / "window.exr").rgb(), expected)
+
+
+def test_an_exr_with_no_stored_pixel_in_its_display_window_is_refused(tmp_path):
+    header = {"type": OpenEXR.scanlineimage, "dataWindow": _box(30, 0, 39, 9), "displayWindow": _box(0, 0, 19, 9)}
+    OpenEXR.File(header, {"Y": np.ones((10, 10), np.float32)}).write(str(tmp_path / "outside.exr"))
+    with pytest.raises(InputError, match=r"outside.exr: no stored pixel lies in the image's frame"):
+        read_exr(tmp_path / "outside.exr")
+
+
+def test_a_small_file_declaring_a_huge_display_window_is_refused_before_decoding(tmp_path):
+    from hdrcam.errors import TooLargeError
+
+    header = {"type": OpenEXR.scanlineimage, "dataWindow": _box(0, 0, 0, 0), "displayWindow": _box(0, 0, 99999, 99999)}
+    OpenEXR.File(header, {"Y": np.ones((1, 1), np.float32)}).write(str(tmp_path / "huge.exr"))
+    with pytest.raises(TooLargeError, match=r"huge.exr: 1 channels over the display window \(100000 x 100000 px\)"):
+        read_exr(tmp_path / "huge.exr")
+
+
+@pytest.mark.parametrize("layers, image", [
+    (("beauty",), "beauty"),  # one layer, prefixed (Nuke's and renderers' layer naming)
+    (("ViewLayer.Combined", "ViewLayer.DiffCol"), "ViewLayer.Combined"),  # Blender's multi-layer render result
+])
+def test_colour_in_a_named_layer_is_read_from_the_images_layer(tmp_path, layers, image):
+    """A file whose colour is in layers only (beauty.R, ViewLayer.Combined.R) was refused as having no R, G, B."""
+    rng = np.random.default_rng(3)
+    planes = {layer: rng.uniform(0, 4, (6, 8, 3)).astype(np.float32) for layer in layers}
+    channels = {f"{layer}.{colour}": np.ascontiguousarray(rgb[..., i])
+                for layer, rgb in planes.items() for i, colour in enumerate("RGB")}
+    channels[f"{image}.A"] = np.ones((6, 8), np.float32)
+    channels["ViewLayer.Depth.Z"] = np.full((6, 8), 7.0, np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "layers.exr"))
+    read = read_exr(tmp_path / "layers.exr")
+    np.testing.assert_array_equal(read.rgb(), planes[image])
+    np.testing.assert_array_equal(read.channels["A"], 1.0)
+
+
+def test_several_colour_layers_none_of_them_the_image_are_refused_naming_them(tmp_path):
+    channels = {f"{layer}.{colour}": np.ones((4, 4), np.float32)
+                for layer in ("diffuse", "specular") for colour in "RGB"}
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "passes.exr"))
+    with pytest.raises(InputError, match=r"passes.exr: colour layers diffuse, specular and no unprefixed R, G, B"):
+        read_exr(tmp_path / "passes.exr")
+
+
+def test_a_multi_part_file_whose_image_is_a_named_layer_is_read_from_that_part(tmp_path):
+    rgb = np.random.default_rng(4).uniform(0, 4, (6, 8, 3)).astype(np.float32)
+    header = {"type": OpenEXR.scanlineimage}
+    depth = OpenEXR.Part(dict(header, name="depth"), {"depth.Z": np.ones((6, 8), np.float32)})
+    image = OpenEXR.Part(dict(header, name="beauty"), {f"beauty.{name}": np.ascontiguousarray(rgb[..., i])
+                                                       for i, name in enumerate("RGB")})
+    with OpenEXR.File([depth, image]) as exr:
+        exr.write(str(tmp_path / "parts.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)

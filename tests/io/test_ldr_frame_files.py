@@ -311,3 +311,32 @@ def test_a_folder_of_radiance_pic_files_is_read_as_frames_are(tmp_path):
     (tmp_path / "scene.hdr").rename(tmp_path / "scene.pic")
     (tmp_path / "thumb.pic").write_bytes(b"\0" * 512 + b"\x00\x0aPICT")  # an Apple PICT picture, not Radiance
     assert [path.name for path in hdr_files(tmp_path)] == ["scene.pic"]
+
+
+@pytest.mark.parametrize("compression", ["DWAA_COMPRESSION", "DWAB_COMPRESSION"])
+def test_a_frame_whose_lossy_compression_rang_past_white_is_refused_naming_the_codec(tmp_path, compression):
+    """A captured frame saved DWA-compressed rings about 2 % past white; it was refused as 'not an LDR capture
+    (give the camera frame, not an HDR image)', though it is the camera frame."""
+    import OpenEXR
+
+    rng = np.random.default_rng(5)
+    frame = np.clip(rng.uniform(0, 1.6, (64, 64, 3)), 0, 1).astype(np.float32)  # a third clipped, noisy
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "compression": getattr(OpenEXR, compression)},
+                 {name: np.ascontiguousarray(frame[..., i]) for i, name in enumerate("RGB")}).write(
+        str(tmp_path / "frame.exr"))
+    name = compression.split("_")[0]
+    with pytest.raises(InputError, match=rf"frame.exr: values (reach|down to) .*the EXR is {name}-compressed, a lossy "
+                                         r"codec .*save the frame losslessly"):
+        read_ldr_frame(tmp_path / "frame.exr")
+
+
+def test_an_hdr_image_in_a_lossy_exr_is_still_called_an_hdr_image(tmp_path):
+    import OpenEXR
+
+    image = np.full((16, 16, 3), 0.5, np.float32)
+    image[4:8, 4:8] = 40.0
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "compression": OpenEXR.DWAA_COMPRESSION},
+                 {name: np.ascontiguousarray(image[..., i]) for i, name in enumerate("RGB")}).write(
+        str(tmp_path / "hdr.exr"))
+    with pytest.raises(InputError, match=r"above white \(1.0\): this is not an LDR capture"):
+        read_ldr_frame(tmp_path / "hdr.exr")

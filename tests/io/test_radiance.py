@@ -109,3 +109,74 @@ def test_corrections_that_multiply_beyond_float32_are_refused_in_one_line(tmp_pa
     path = _with_header(tmp_path, _image(), b"#?RADIANCE\nEXPOSURE=1e-20\nEXPOSURE=1e-20\n", b"-Y 6 +X 9")
     with pytest.raises(InputError, match=r"EXPOSURE and COLORCORR lines multiply to 1e-40, 1e-40, 1e-40"):
         read_hdr_image(path)
+
+
+def _colr(image: np.ndarray) -> np.ndarray:
+    """``image``'s 4-byte pixels as Radiance's setcolr (and OpenCV) encode them: mantissas truncated."""
+    largest = image.max(axis=-1)
+    fraction, exponent = np.frexp(largest)
+    scale = np.where(largest > 1e-32, fraction * 256.0 / np.maximum(largest, 1e-32), 0.0)
+    colr = np.zeros(image.shape[:2] + (4,), np.uint8)
+    colr[..., :3] = (image * scale[..., None]).astype(np.uint8)
+    colr[..., 3] = np.where(largest > 1e-32, exponent + 128, 0)
+    return colr
+
+
+def _old_style_runs(colr: np.ndarray) -> bytes:
+    """Scanlines in Radiance's old-style run-length encoding: after a pixel, 1, 1, 1, n repeats it n times; a
+    second such record in a row counts in units of 256."""
+    out = bytearray()
+    for row in colr:
+        x = 0
+        while x < len(row):
+            out += row[x].tobytes()
+            run = 1
+            while x + run < len(row) and (row[x + run] == row[x]).all():
+                run += 1
+            if run > 1:
+                out += bytes([1, 1, 1, (run - 1) & 255]) + (bytes([1, 1, 1, (run - 1) >> 8]) if run > 256 else b"")
+            x += run
+    return bytes(out)
+
+
+def test_old_style_run_length_scanlines_read_as_the_pixels_they_repeat(tmp_path):
+    """Radiance's first run-length encoding (pixels 1, 1, 1, n repeat the one before; "Radiance File Formats",
+    color.c oldreadcolrs), as pre-1991 Radiance files hold: OpenCV refused them ("pixel data cannot be
+    decoded"). Scanlines 300 pixels long, one of them a run of 299 repeats (counted in two records)."""
+    image = np.repeat(_image()[:, :1], 300, axis=1)
+    image[:, 100:140] = _image()[:, :1] * 0.5
+    image[1, 5:9] = _image()[1, 3]
+    colr = _colr(image)
+    flat = tmp_path / "flat.hdr"
+    flat.write_bytes(STANDARD_HEADER + b"-Y %d +X 300\n" % HEIGHT + colr.tobytes())  # OpenCV reads flat files
+    runs = tmp_path / "runs.hdr"
+    runs.write_bytes(STANDARD_HEADER + b"-Y %d +X 300\n" % HEIGHT + _old_style_runs(colr))
+    expected = cv2.cvtColor(cv2.imread(str(flat), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(read_hdr_image(runs), expected)
+    np.testing.assert_array_equal(read_hdr_image(flat), expected)
+
+
+def test_a_flat_file_cut_in_its_pixels_names_the_scanline(tmp_path):
+    path = tmp_path / "cut.hdr"
+    path.write_bytes(STANDARD_HEADER + b"-Y %d +X %d\n" % (HEIGHT, WIDTH) + _colr(_image()).tobytes()[:-10])
+    with pytest.raises(InputError, match=r"cut.hdr: Radiance pixel data cannot be decoded: scanline 6 of 6: the "
+                                         r"file ends inside it \(truncated\)"):
+        read_hdr_image(path)
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"#?RADIANCE\r\nFORMAT=32-bit_rle_rgbe\r\n\r\n-Y 6 +X 9\r\n" + bytes(216),
+     r"crlf.hdr: Radiance header lines end in CR LF, not LF: a copy made in text mode"),
+    (b"#?RADIANCE\r\nFORMAT=32-bit_rle_rgbe\r\n\r\n-Y 6 +X 9\r\n" + bytes(100) + b"\n\n" + bytes(114),
+     r"crlf.hdr: Radiance header lines end in CR LF"),  # LF LF in the pixels: it was read as a resolution line
+    (b"P6\n9 6\n255\n" + bytes(162), r"crlf.hdr: not a Radiance file \(it does not start with the '#\?' magic line\)"),
+    (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n-Y 6 +X 9\n", r"crlf.hdr: not a Radiance file \(no empty line ends its"),
+])
+def test_a_file_that_is_not_radiance_says_what_it_lacks(tmp_path, data, message):
+    """A header with CR LF line ends (a text-mode copy) was called a file with 'no '#?' magic line and header
+    ending in an empty line', though it has the magic line."""
+    from hdrcam.io.radiance import read_radiance
+
+    (tmp_path / "crlf.hdr").write_bytes(data)
+    with pytest.raises(InputError, match=message):
+        read_radiance(tmp_path / "crlf.hdr")
