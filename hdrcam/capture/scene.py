@@ -28,6 +28,11 @@ DEFAULT_PINHOLE_SPACING_PX = 72  # > the simulated profile's 63 px PSF plus an a
 # than that costs the fit its background annulus, sparser costs sources: at 96 px (80 sources) blue, whose PSF keeps
 # 75 % of its energy in one pixel sampled at a quarter of the sites, was off by 2.2-3.5 % L1 on two of three seeds
 PINHOLE_MARGIN_PX = 9  # spacing beyond the PSF for the background annulus (72 px for the simulated profile's 63)
+PINHOLE_PITCH_FRACTION_PX = 0.6  # the default pitch's part beyond a whole pixel: a real target's pitch on the
+# sensor is no whole number of pixels, so its pinholes land at every CFA and sub-pixel phase (0, 0.6, 1.2, 1.8,
+# 0.4, ... px into the 2 px CFA period). A whole pitch puts all at one phase: at the A7 profile's 264 px, each
+# pinhole's own sub-pixel offset within one pixel left blue's PSF core unsampled, 12.9 % off in L1 (264.6: 2.5 %)
+CFA_PERIOD_PX = 2  # a 2 x 2 colour filter array repeats every 2 pixels
 DEFAULT_POINT_POWER = 50.0  # PSF peak ~ half the full well at 1/4000 s with the default reference exposure
 
 
@@ -55,13 +60,15 @@ class Scene:
 
 
 def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
-               pinhole_spacing_px: int = DEFAULT_PINHOLE_SPACING_PX) -> Scene:
+               pinhole_spacing_px: float = DEFAULT_PINHOLE_SPACING_PX + PINHOLE_PITCH_FRACTION_PX) -> Scene:
     """``point[:POWER]`` | ``pinholes[:POWER[:SPACING]]`` | ``night`` | ``flat[:LEVEL]`` | an EXR file (scaled to
     cover the sensor, centre crop).
 
-    ``pinholes`` is a pinhole-array calibration target: a grid of equal point sources SPACING pixels apart
-    (default ``pinhole_spacing_px``: pinhole_spacing_for(PSF size) gives the camera's), each imaged at its own
-    sub-pixel and CFA phase, so together they sample the PSF densely.
+    ``pinholes`` is a pinhole-array calibration target: a rigid grid of equal point sources SPACING pixels apart
+    (fractional allowed; default ``pinhole_spacing_px``: pinhole_spacing_for(PSF size) gives the camera's, a
+    fractional pitch whose pinholes land at every sub-pixel and CFA phase, so together they sample the PSF
+    densely; a whole-pixel SPACING puts them all at one phase, as a real target square to the sensor at such a
+    pitch would, which calibration refuses).
     """
     check_image_size("the simulated frame", height_px, width_px, SIMULATED_CAMERA_BYTES_PER_PIXEL,
                      "use a smaller --size")
@@ -76,11 +83,11 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
     if kind == "pinholes":
         power_text, _, spacing_text = argument.partition(":")
         power = _number(spec, power_text, DEFAULT_POINT_POWER)
-        spacing = int(_number(spec, spacing_text, pinhole_spacing_px))
+        spacing = _number(spec, spacing_text, pinhole_spacing_px)
         points = pinhole_grid(height_px, width_px, spacing, power, seed)
         if not points:
-            raise InputError(f"scene {spec!r}: no pinhole fits a {width_px} x {height_px} frame {spacing} px apart")
-        return Scene(height_px, width_px, None, points, f"pinhole array, {len(points)} sources {spacing} px apart, "
+            raise InputError(f"scene {spec!r}: no pinhole fits a {width_px} x {height_px} frame {spacing:g} px apart")
+        return Scene(height_px, width_px, None, points, f"pinhole array, {len(points)} sources {spacing:g} px apart, "
                                                          f"power {power:g} each")
     if kind == "night":
         return Scene(height_px, width_px, night_scene(height_px, width_px, seed), (), f"procedural night, seed {seed}")
@@ -99,23 +106,27 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
     return Scene(height_px, width_px, _cover(radiance, height_px, width_px), (), f"{path.name}")
 
 
-def pinhole_spacing_for(psf_px: int) -> int:
-    """The default pinhole spacing (px) for a camera whose PSF is ``psf_px`` wide: DEFAULT_PINHOLE_SPACING_PX, or
+def pinhole_spacing_for(psf_px: int) -> float:
+    """The default pinhole pitch (px) for a camera whose PSF is ``psf_px`` wide: DEFAULT_PINHOLE_SPACING_PX, or
     the PSF with the same margin for the background annulus where it is wider (the A7 profile's 255 px PSF:
     264 px; at 72 px its pinholes were refused as crowded, and the smaller --size the refusal suggested cut the
-    PSF's streaks into sources of their own)."""
-    return max(DEFAULT_PINHOLE_SPACING_PX, psf_px + PINHOLE_MARGIN_PX)
+    PSF's streaks into sources of their own), plus PINHOLE_PITCH_FRACTION_PX: 72.6 and 264.6 px."""
+    return max(DEFAULT_PINHOLE_SPACING_PX, psf_px + PINHOLE_MARGIN_PX) + PINHOLE_PITCH_FRACTION_PX
 
 
-def pinhole_grid(height_px: int, width_px: int, spacing_px: int, power: float, seed: int
+def pinhole_grid(height_px: int, width_px: int, spacing_px: float, power: float, seed: int
                  ) -> tuple[PointSource, ...]:
-    """Sources on a square grid ``spacing_px`` apart, half a spacing from the edges, each moved by a seeded
-    uniform sub-pixel offset (a real target is never aligned with the pixel grid)."""
-    rng = np.random.default_rng(seed)
-    rows = np.arange(spacing_px // 2, height_px - spacing_px // 2 + 1, spacing_px) if spacing_px > 0 else []
-    columns = np.arange(spacing_px // 2, width_px - spacing_px // 2 + 1, spacing_px) if spacing_px > 0 else []
-    return tuple(PointSource(float(x + rng.uniform(0, 1)), float(y + rng.uniform(0, 1)), power)
-                 for y in rows for x in columns)
+    """Sources on a rigid square grid ``spacing_px`` apart (a plate's pinholes: one pitch, no pinhole moved on
+    its own), the first half a spacing from the top left, the whole grid moved by a seeded offset over a CFA
+    period (where a real target sits against the pixels is chance)."""
+    if spacing_px <= 0:
+        return ()
+    def centres(extent_px: int, offset_px: float) -> np.ndarray:  # half a spacing in, as many as fit
+        return spacing_px / 2 + offset_px + spacing_px * np.arange(int((extent_px - spacing_px) // spacing_px) + 1)
+
+    offset_y, offset_x = np.random.default_rng(seed).uniform(0, CFA_PERIOD_PX, 2)
+    return tuple(PointSource(float(x), float(y), power)
+                 for y in centres(height_px, offset_y) for x in centres(width_px, offset_x))
 
 
 def _number(spec: str, text: str, default: float) -> float:

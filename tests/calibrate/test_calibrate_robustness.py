@@ -62,10 +62,10 @@ def test_a_single_point_source_is_refused(tmp_path, capsys, recwarn, power):
 
 
 def test_faint_pinholes_are_warned_about_and_bright_ones_pass_without_warning(tmp_path, capsys, recwarn):
-    """24 pinholes 40 px apart: at power 0.5 the fit puts ~5 % of the red energy below zero (before: exit 0,
+    """24 pinholes 40.6 px apart: at power 0.5 the fit puts ~5 % of the red energy below zero (before: exit 0,
     silently); at the default power 50 it passes, with nothing on stderr."""
-    _capture(tmp_path / "faint", "pinholes:0.5:40", stops=3)
-    _capture(tmp_path / "bright", "pinholes::40", stops=3)
+    _capture(tmp_path / "faint", "pinholes:0.5:40.6", stops=3)
+    _capture(tmp_path / "bright", "pinholes::40.6", stops=3)
     recwarn.clear()
     with pytest.warns(UserWarning, match=r"poorly constrained: [3-9]\.\d % of the fitted red energy is negative"):
         assert _calibrate(tmp_path / "faint", tmp_path / "faint-record") == 0
@@ -77,8 +77,8 @@ def test_faint_pinholes_are_warned_about_and_bright_ones_pass_without_warning(tm
 
 
 def _rigid_grid(folder, monkeypatch, pitch_px: float, offset_px: float = 0.6) -> None:
-    """A bracket of 6 x 4 pinholes exactly ``pitch_px`` apart, as on a rigid target square to the sensor (the
-    pinholes scene moves each by its own random sub-pixel offset, which hides the problem)."""
+    """A bracket of 6 x 4 pinholes exactly ``pitch_px`` apart, as on a rigid target square to the sensor, at a
+    fixed offset."""
     from hdrcam.capture import scene
 
     def rigid(spec, height_px, width_px, seed=0, pinhole_spacing_px=None):  # load_scene's signature
