@@ -55,15 +55,16 @@ def test_unreadable_photographs_are_left_out_by_name_and_a_sun_stored_as_inf_is_
     damaged = _lamps(2)
     damaged[5, 5, 1] = np.nan
     _exr(data / "nan.exr", {"RGB": damaged})
-    _exr(data / "layered.exr", {"beauty": _lamps(3)})  # channels beauty.R, beauty.G, beauty.B
+    _exr(data / "beauty.exr", {"beauty": _lamps(3)})  # channels beauty.R, beauty.G, beauty.B: the image's layer
+    _exr(data / "layered.exr", {"diffuse": _lamps(4), "specular": _lamps(5)})  # which one is the image is not known
     (data / "preview.hdr").write_bytes(b"\xff\xd8\xff\xe0" + bytes(64))  # a JPEG under an HDR name
     (data / "gone.exr").symlink_to(tmp_path / "missing.exr")
     with pytest.warns(UserWarning) as warned:
         assert main(["evaluate", "--data", str(data), "--size", "64", "--no-partner",
                      "--out", str(tmp_path / "out")]) == 0
-    assert _scored(tmp_path / "out") == ["lamps", "sun"]
+    assert _scored(tmp_path / "out") == ["beauty", "lamps", "sun"]
     messages = [str(warning.message) for warning in warned]
-    for name, why in [("nan.exr", "NaN"), ("layered.exr", "beauty.R"), ("preview.hdr", "cannot read"),
+    for name, why in [("nan.exr", "NaN"), ("layered.exr", "diffuse, specular"), ("preview.hdr", "cannot read"),
                       ("gone.exr", "no such file")]:
         assert any(f"{name}: not evaluated - " in message and why in message for message in messages), name
     assert any("sun.exr: 48 values are +Inf" in message for message in messages)
