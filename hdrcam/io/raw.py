@@ -269,7 +269,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 raise InputError(f"{path}: truncated or damaged: LibRaw reports an I/O error decoding it "
                                  f"({_libraw_reason(error)}); copy it from the card again") from None
             _check_bayer(path, raw, tiff)
-            tile = raw.raw_pattern[:2, :2].ravel()
+            tile = _visible_tile(raw)
             black = tiff.dng_black_tile or tuple(float(raw.black_level_per_channel[i]) for i in tile)
             _check_black_placement(path, black, tiff)
             other = raw.other
@@ -400,6 +400,17 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
 
 
 BAYER_TILES = ("RGGB", "BGGR", "GRBG", "GBRG")
+
+
+def _visible_tile(raw) -> np.ndarray:
+    """LibRaw's colour indices (0 R, 1 G, 2 B, 3 second G) of the 2 x 2 tile whose top-left is the first visible
+    pixel, row-major. rawpy's ``raw_pattern`` is laid out from the raw data's origin, margins included (rawpy's
+    ``raw_color`` takes full-RAW coordinates and ``raw_colors_visible`` crops that layout at the margins), so an odd
+    top or left margin shifts the tile by a row or column. LibRaw evens such margins when it opens a Bayer file
+    (src/utils/open.cpp); the tile does not depend on it."""
+    sizes = raw.sizes
+    pattern = np.roll(np.asarray(raw.raw_pattern), (-int(sizes.top_margin), -int(sizes.left_margin)), axis=(0, 1))
+    return pattern[:2, :2].ravel()
 
 
 def _check_black_placement(path: Path, black_dn: tuple[float, ...], tiff: "_TiffFacts") -> None:
