@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import rawpy
 
+from hdrcam.errors import InputError
 from hdrcam.io.raw import read_raw
 
 RGGB_AT_RAW_ORIGIN = np.array([[0, 1], [3, 2]], np.uint8)  # LibRaw colour indices: 0 R, 1 G, 2 B, 3 second G
@@ -72,3 +73,21 @@ def test_the_cfa_tile_and_its_black_levels_start_at_the_first_visible_pixel(tmp_
     assert frame.metadata.black_level_dn == tuple(float(BLACK_BY_COLOUR[c]) for c in colours)
     site_medians = [float(np.median(frame.bayer_dn[row::2, column::2])) for row in range(2) for column in range(2)]
     assert np.allclose(np.subtract(site_medians, frame.metadata.black_level_dn), 40, atol=2)  # each site's own
+
+
+IIQ_HEADER = b"IIII\x01\x00\x00\x00"  # a Phase One IIQ's first bytes (LibRaw also looks for MMMM in the first 32)
+
+
+@pytest.mark.parametrize("header", [IIQ_HEADER, b"II*\x00\x08\x00\x00\x00" + bytes(8) + b"MMMM"])
+def test_a_phase_one_iiq_is_refused_before_its_undeveloped_data_is_read(tmp_path, monkeypatch, header):
+    """LibRaw reports black 0 for compressed IIQs and subtracts the back's black level (and applies its sensor
+    corrections) only when it develops the file: the data, bottoming out at 238 DN on an IQ180 (LibRaw/LibRaw#432),
+    were read as signal."""
+    raw_dn = np.round(np.random.default_rng(7).normal(260.0, 4.0, (64, 96))).astype(np.uint16)
+    fake = FakeRawPy(raw_dn, (0, 0), (64, 96))
+    fake.black_level_per_channel = [0, 0, 0, 0]
+    monkeypatch.setattr(rawpy, "RawPy", lambda: fake)
+    path = tmp_path / "CF000001.IIQ"
+    path.write_bytes(header + bytes(120))
+    with pytest.raises(InputError, match=r"CF000001\.IIQ: a Phase One IIQ file .* convert it to DNG first"):
+        read_raw(path)
