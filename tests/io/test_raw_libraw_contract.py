@@ -91,3 +91,17 @@ def test_a_phase_one_iiq_is_refused_before_its_undeveloped_data_is_read(tmp_path
     path.write_bytes(header + bytes(120))
     with pytest.raises(InputError, match=r"CF000001\.IIQ: a Phase One IIQ file .* convert it to DNG first"):
         read_raw(path)
+
+
+def test_a_fuji_superccd_raf_is_refused_by_its_pattern(tmp_path, monkeypatch):
+    """Fuji's S-series SuperCCD (LibRaw's fuji_width): the photosites lie on a lattice turned 45 degrees, stored row
+    by row, and LibRaw's colour of a stored pixel goes through that turn, so rawpy's raw_pattern repeats every 4
+    columns (G B G R / G R G B for RGGB on the turned lattice), not every 2: refused, not read as a Bayer mosaic."""
+    raw_dn = np.round(np.random.default_rng(8).normal(600.0, 4.0, (64, 96))).astype(np.uint16)
+    fake = FakeRawPy(raw_dn, (0, 0), (64, 96))
+    fake.raw_pattern = np.tile(np.array([[1, 2, 3, 0], [3, 0, 1, 2]], np.uint8), (2, 1))
+    monkeypatch.setattr(rawpy, "RawPy", lambda: fake)
+    path = tmp_path / "DSCF0001.RAF"
+    path.write_bytes(b"FUJIFILMCCD-RAW " + bytes(112))
+    with pytest.raises(InputError, match=r"DSCF0001\.RAF: colour filter RGBG of 4 x 4 is not a 2 x 2 RGB Bayer"):
+        read_raw(path)
