@@ -11,7 +11,7 @@ The pixels stay in the sensor's orientation (the PSF is measured and the CFA is 
 
 Refused with one line naming the file: what LibRaw cannot open (with LibRaw's reason), a greyscale TIFF image
 (a raw developer's black-and-white export, which LibRaw takes for a mosaic RAW: :func:`_is_greyscale_image`),
-sensors that are
+a Phase One IIQ (LibRaw leaves its black level out of the undeveloped data: :func:`_is_phase_one`), sensors that are
 not a 2 x 2 Bayer mosaic on a square grid (X-Trans 6 x 6, Foveon and linear DNGs, four-colour CFAs, a DNG's
 Quad-Bayer, Nona-Bayer or staggered CFA, a visible area LibRaw places outside its raw data),
 and truncated files. Some of LibRaw's decoders fill a truncated file's missing rows by
@@ -257,6 +257,10 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                           "black-and-white export?), not a RAW file")
     if tiff.file_bytes < LIBRAW_HEADER_BYTES:  # LibRaw reports an I/O error for these, as for a damaged file
         raise NotRawError(f"{path}: LibRaw does not open it as RAW (only {tiff.file_bytes} bytes: no RAW header)")
+    if _is_phase_one(path):
+        raise InputError(f"{path}: a Phase One IIQ file (Phase One, Leaf or Mamiya back): LibRaw subtracts its black "
+                         "level (per row and column) and applies its sensor corrections only when it develops the "
+                         "file, not in the undeveloped data hdrcam reads; convert it to DNG first")
     raw, bayer = rawpy.RawPy(), None
     try:
         with c_stderr_silenced(), _libraw_path(path) as libraw_path:
@@ -269,7 +273,7 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
                 raise InputError(f"{path}: truncated or damaged: LibRaw reports an I/O error decoding it "
                                  f"({_libraw_reason(error)}); copy it from the card again") from None
             _check_bayer(path, raw, tiff)
-            tile = raw.raw_pattern[:2, :2].ravel()
+            tile = _visible_tile(raw)
             black = tiff.dng_black_tile or tuple(float(raw.black_level_per_channel[i]) for i in tile)
             _check_black_placement(path, black, tiff)
             other = raw.other
@@ -313,6 +317,21 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
         raise InputError(f"{path}: the file records no exposure time (EXIF ExposureTime), which merging needs; "
                          "use the camera's original file")
     return metadata, bayer
+
+
+PHASE_ONE_MARKS = (b"IIII", b"MMMM")  # LibRaw's identify() reads a file with either in its first 32 bytes as a
+# Phase One IIQ (parse_phase_one), before it looks for any other format
+PHASE_ONE_HEADER_BYTES = 32
+
+
+def _is_phase_one(path: Path) -> bool:
+    """Whether LibRaw takes the file for a Phase One IIQ. Its compressed IIQ decoders leave the data undeveloped:
+    LibRaw reports a black level of 0 (LibRaw/LibRaw#432: IQ180 data bottoming out at 238 DN) and subtracts the
+    back's black level, per row and column, and applies its sensor corrections in raw2image_ex
+    (phase_one_subtract_black, phase_one_correct), which rawpy's raw_image never passes through."""
+    with open(path, "rb") as file:
+        head = file.read(PHASE_ONE_HEADER_BYTES)
+    return any(mark in head for mark in PHASE_ONE_MARKS)
 
 
 @contextlib.contextmanager
@@ -400,6 +419,17 @@ def _check_bayer(path: Path, raw, tiff: "_TiffFacts") -> None:
 
 
 BAYER_TILES = ("RGGB", "BGGR", "GRBG", "GBRG")
+
+
+def _visible_tile(raw) -> np.ndarray:
+    """LibRaw's colour indices (0 R, 1 G, 2 B, 3 second G) of the 2 x 2 tile whose top-left is the first visible
+    pixel, row-major. rawpy's ``raw_pattern`` is laid out from the raw data's origin, margins included (rawpy's
+    ``raw_color`` takes full-RAW coordinates and ``raw_colors_visible`` crops that layout at the margins), so an odd
+    top or left margin shifts the tile by a row or column. LibRaw evens such margins when it opens a Bayer file
+    (src/utils/open.cpp); the tile does not depend on it."""
+    sizes = raw.sizes
+    pattern = np.roll(np.asarray(raw.raw_pattern), (-int(sizes.top_margin), -int(sizes.left_margin)), axis=(0, 1))
+    return pattern[:2, :2].ravel()
 
 
 def _check_black_placement(path: Path, black_dn: tuple[float, ...], tiff: "_TiffFacts") -> None:
