@@ -291,7 +291,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
         began = _run_start(saved_config) if not checkpoint else None
         partner_start, partner_state = _checked_partner(*(began or (start, state)))
     new_run = {"preset": state["preset"], "profile": state["profile"], "doe": None, "steps": 200,
-               "init_checkpoint": str(start), "learning_rate": 2e-4, "finetune_partner": partner}
+               "init_checkpoint": str(start), "learning_rate": 2e-4, "finetune_partner": partner_start is not None}
     options = _given(data=recorded_data(data), steps=steps, batch=batch, crop_px=crop_px,
                      learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
                      channels_last=channels_last, psf=recorded_file(psf))
@@ -355,7 +355,8 @@ def _partner_choice(out: Path, given: bool | None) -> bool:
     if recorded is None:
         return given is not False
     if given is not None and given != recorded:
-        started = "without --no-partner (it fine-tunes its partner)" if recorded else "with --no-partner"
+        started = "without --no-partner (it fine-tunes its partner)" if recorded else \
+            "without a partner (--no-partner, or a checkpoint that has none)"
         raise InputError(f"finetune --resume: {out} was started {started}; resume it as it was started, or choose "
                          "another --out")
     return recorded

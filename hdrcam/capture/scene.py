@@ -33,6 +33,7 @@ PINHOLE_PITCH_FRACTION_PX = 0.6  # the default pitch's part beyond a whole pixel
 # 0.4, ... px into the 2 px CFA period). A whole pitch puts all at one phase: at the A7 profile's 264 px, each
 # pinhole's own sub-pixel offset within one pixel left blue's PSF core unsampled, 12.9 % off in L1 (264.6: 2.5 %)
 CFA_PERIOD_PX = 2  # a 2 x 2 colour filter array repeats every 2 pixels
+MIN_PINHOLE_SPACING_PX = 2 * CFA_PERIOD_PX  # closer pinholes are no target (and a sub-pixel pitch: millions)
 DEFAULT_POINT_POWER = 50.0  # PSF peak ~ half the full well at 1/4000 s with the default reference exposure
 
 
@@ -84,6 +85,9 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
         power_text, _, spacing_text = argument.partition(":")
         power = _number(spec, power_text, DEFAULT_POINT_POWER)
         spacing = _number(spec, spacing_text, pinhole_spacing_px)
+        if spacing < MIN_PINHOLE_SPACING_PX:
+            raise InputError(f"scene {spec!r}: pinholes {spacing:g} px apart; give a SPACING of at least "
+                             f"{MIN_PINHOLE_SPACING_PX} px (the default follows the PSF: {pinhole_spacing_px:g} px)")
         points = pinhole_grid(height_px, width_px, spacing, power, seed)
         if not points:
             raise InputError(f"scene {spec!r}: no pinhole fits a {width_px} x {height_px} frame {spacing:g} px apart")
@@ -119,8 +123,6 @@ def pinhole_grid(height_px: int, width_px: int, spacing_px: float, power: float,
     """Sources on a rigid square grid ``spacing_px`` apart (a plate's pinholes: one pitch, no pinhole moved on
     its own), the first half a spacing from the top left, the whole grid moved by a seeded offset over a CFA
     period (where a real target sits against the pixels is chance)."""
-    if spacing_px <= 0:
-        return ()
     def centres(extent_px: int, offset_px: float) -> np.ndarray:  # half a spacing in, as many as fit
         return spacing_px / 2 + offset_px + spacing_px * np.arange(int((extent_px - spacing_px) // spacing_px) + 1)
 

@@ -335,3 +335,15 @@ def test_a_copied_run_finds_the_shipped_start_here_and_names_another_start_that_
     assert main(_finetune(run, "--resume")) == 1  # it said only 'does not exist'
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "the checkpoint this run started from, is gone" in error
+
+
+def test_a_run_from_a_checkpoint_without_a_partner_resumes_with_no_partner_too(tmp_path, capsys):
+    """It recorded the wish (a partner) instead of what happened (none to train): --resume --no-partner was then
+    refused as 'started without --no-partner'."""
+    start = tmp_path / "start.pt"
+    shutil.copyfile(SHIPPED_CHECKPOINT, start)  # no start-partner.pt beside it
+    out = tmp_path / "run"
+    assert main(_finetune(out, "--checkpoint", str(start))) == 0
+    assert read_checkpoint(out / "model.pt")["config"]["finetune_partner"] is False
+    assert main(["finetune", "--out", str(out), "--resume", "--steps", "3", "--no-partner"]) == 0
+    assert read_checkpoint(out / "model.pt")["step"] == 3 and not (out / "partner").exists()
