@@ -93,20 +93,23 @@ def read_exr_attributes(path: Path) -> dict[str, Any]:
         raise _unreadable(path, error) from None
 
 
-LOSSY_COMPRESSIONS = {OpenEXR.B44_COMPRESSION: "B44", OpenEXR.B44A_COMPRESSION: "B44A",
-                      OpenEXR.DWAA_COMPRESSION: "DWAA", OpenEXR.DWAB_COMPRESSION: "DWAB",
-                      OpenEXR.PXR24_COMPRESSION: "PXR24"}  # B44 only on half channels, PXR24 only on float32
+LOSSY_COMPRESSIONS = {OpenEXR.DWAA_COMPRESSION: "DWAA", OpenEXR.DWAB_COMPRESSION: "DWAB"}  # lossy on every type
+HALF_LOSSY_COMPRESSIONS = {OpenEXR.B44_COMPRESSION: "B44", OpenEXR.B44A_COMPRESSION: "B44A"}  # lossy on half
+# channels only (float32 ones are stored as they are); PXR24 rounds float32 to 24 bits, 1e-5: no ringing
 
 
 def lossy_compression(path: Path) -> str | None:
-    """The name of the lossy compression (B44, B44A, DWAA, DWAB, PXR24) of an EXR's image part, None for a
-    lossless one or a header that cannot be read."""
+    """The name of the compression of an EXR's image part where it altered the colour channels' values: DWAA or
+    DWAB, or B44 / B44A on half-float colour channels; None for a lossless file, or one that cannot be read. The
+    file's pixels are read again (the channels' stored types are not in the header OpenEXR's binding gives)."""
     try:
-        headers = _part_headers(Path(path).read_bytes())
+        with _openexr_quiet(), OpenEXR.File(io.BytesIO(Path(path).read_bytes()), separate_channels=True) as file:
+            part = _image_part(file.parts)
+            compression = part.header.get("compression")
+            half = any(channel.pixels.dtype == np.float16 for channel in part.channels.values())
     except _UNREADABLE:
         return None
-    header = headers[_image_index([{channel.name for channel in part.get("channels", ())} for part in headers])]
-    return LOSSY_COMPRESSIONS.get(header.get("compression"))
+    return LOSSY_COMPRESSIONS.get(compression) or (HALF_LOSSY_COMPRESSIONS.get(compression) if half else None)
 
 
 def _header(data: bytes) -> dict[str, Any]:

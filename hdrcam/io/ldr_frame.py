@@ -60,10 +60,10 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
-    suffix, orientation, lossy = path.suffix.lower(), 1, None
+    suffix, orientation, exr = path.suffix.lower(), 1, False
     if suffix == ".exr" or is_exr_file(path):
         image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
-        rgb, orientation, lossy = image.rgb(), exr_orientation(image.attributes), lossy_compression(path)
+        rgb, orientation, exr = image.rgb(), exr_orientation(image.attributes), True
     elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
         rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)
     elif suffix in GAMMA_SUFFIXES or starts_with(path, JPEG_MAGIC):
@@ -88,6 +88,7 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     lowest, highest = float(rgb.min()), float(rgb.max())
+    lossy = lossy_compression(path) if exr and (lowest < -NEGATIVE_LDR_TOLERANCE or highest > LDR_TOLERANCE) else None
     if lowest < -NEGATIVE_LDR_TOLERANCE:
         raise InputError(f"{path}: values down to {lowest:.4g} of white; " + (_lossy_advice(lossy, -lowest) or
                          f"a captured frame's noise stays within {NEGATIVE_LDR_TOLERANCE:g} of black - check how the "

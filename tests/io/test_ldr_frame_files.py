@@ -340,3 +340,21 @@ def test_an_hdr_image_in_a_lossy_exr_is_still_called_an_hdr_image(tmp_path):
         str(tmp_path / "hdr.exr"))
     with pytest.raises(InputError, match=r"above white \(1.0\): this is not an LDR capture"):
         read_ldr_frame(tmp_path / "hdr.exr")
+
+
+@pytest.mark.parametrize("dtype, blamed", [(np.float16, True), (np.float32, False)])
+def test_b44_is_blamed_only_where_it_altered_half_float_channels(tmp_path, dtype, blamed):
+    """B44 is lossy on half channels only (float32 ones are stored as they are): a float32 B44 file 5 % above
+    white was told its codec rang, though its values are exactly what was written."""
+    import OpenEXR
+
+    from hdrcam.io.exr import lossy_compression
+
+    frame = np.full((32, 32, 3), 0.5, dtype)
+    frame[8:12, 8:12] = 1.05  # past white by more than a capture's tolerance, well within a codec's ringing
+    OpenEXR.File({"type": OpenEXR.scanlineimage, "compression": OpenEXR.B44_COMPRESSION},
+                 {name: np.ascontiguousarray(frame[..., i]) for i, name in enumerate("RGB")}).write(
+        str(tmp_path / "frame.exr"))
+    assert lossy_compression(tmp_path / "frame.exr") == ("B44" if blamed else None)
+    with pytest.raises(InputError, match="B44-compressed" if blamed else "this is not an LDR capture"):
+        read_ldr_frame(tmp_path / "frame.exr")
