@@ -233,7 +233,8 @@ def _image_index(channel_names: list[set[str]]) -> int:
         for index, names in enumerate(channel_names):
             if channel_set <= names:
                 return index
-    return next((index for index, names in enumerate(channel_names) if _rgb_layers(names)), 0)
+    return next((index for index, names in enumerate(channel_names) if _image_layer(names) is not None),
+                next((index for index, names in enumerate(channel_names) if _rgb_layers(names)), 0))
 
 
 IMAGE_LAYER_NAMES = ("combined", "beauty", "rgba")  # Blender's render result (ViewLayer.Combined), others' beauty
@@ -246,22 +247,34 @@ def _rgb_layers(names) -> list[str]:
     return sorted(prefix for prefix in prefixes if all(prefix + colour in names for colour in "RGB"))
 
 
+def _image_layer(names) -> str | None:
+    """Of the layers holding R, G and B (:func:`_rgb_layers`), the image's: the only one, else the one named like
+    an image (IMAGE_LAYER_NAMES); None when none or several are."""
+    layers = _rgb_layers(names)
+    if len(layers) > 1:
+        layers = [layer for layer in layers if layer[:-1].rsplit(".", 1)[-1].lower() in IMAGE_LAYER_NAMES]
+    return layers[0] if len(layers) == 1 else None
+
+
 def _with_image_layer_as_rgb(path: Path, channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """``channels`` with the image's layer as R, G, B (and A): unprefixed R, G, B when there are any, else the one
     layer with R, G, B (Blender, Nuke and renderers' multi-layer files: "beauty.R", "ViewLayer.Combined.R"), or of
     several the one named like an image (IMAGE_LAYER_NAMES); InputError naming the layers when that leaves
-    several. Channels unchanged when no layer holds colour."""
+    several, or when an unprefixed channel of the same name (a lone R) would mix into it. Channels unchanged
+    when no layer holds colour."""
     layers = _rgb_layers(channels)
     if not layers or "" in layers or {"Y", "RY", "BY"} <= channels.keys() or "Y" in channels:
         return channels
-    if len(layers) > 1:
-        named = [layer for layer in layers if layer[:-1].rsplit(".", 1)[-1].lower() in IMAGE_LAYER_NAMES]
-        if len(named) != 1:
-            shown = ", ".join(layer[:-1] for layer in layers)
-            raise InputError(f"{path}: colour layers {shown} and no unprefixed R, G, B: which is the image is not "
-                             "known; save the image's layer as R, G, B")
-        layers = named
-    renamed = {colour: layers[0] + colour for colour in "RGBA" if layers[0] + colour in channels}
+    layer = _image_layer(channels)
+    if layer is None:
+        shown = ", ".join(layer[:-1] for layer in layers)
+        raise InputError(f"{path}: colour layers {shown} and no unprefixed R, G, B: which is the image is not "
+                         "known; save the image's layer as R, G, B")
+    renamed = {colour: layer + colour for colour in "RGBA" if layer + colour in channels}
+    clashing = sorted(renamed.keys() & channels.keys())
+    if clashing:
+        raise InputError(f"{path}: unprefixed channel {', '.join(clashing)} beside the colour layer {layer[:-1]}: "
+                         "which is the image is not known; save the image's layer as R, G, B")
     return {**{colour: channels[name] for colour, name in renamed.items()},
             **{name: plane for name, plane in channels.items() if name not in renamed.values()}}
 

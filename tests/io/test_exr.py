@@ -396,3 +396,26 @@ def test_a_multi_part_file_whose_image_is_a_named_layer_is_read_from_that_part(t
     with OpenEXR.File([depth, image]) as exr:
         exr.write(str(tmp_path / "parts.exr"))
     np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
+
+
+def test_a_passes_part_before_the_beauty_part_does_not_hide_the_image(tmp_path):
+    """The first part with any colour layers was taken: passes (diffuse, specular) before the beauty part made the
+    file refused as having no known image."""
+    rgb = np.random.default_rng(6).uniform(0, 4, (6, 8, 3)).astype(np.float32)
+    header = {"type": OpenEXR.scanlineimage}
+    passes = OpenEXR.Part(dict(header, name="passes"), {f"{layer}.{colour}": np.ones((6, 8), np.float32)
+                                                        for layer in ("diffuse", "specular") for colour in "RGB"})
+    image = OpenEXR.Part(dict(header, name="beauty"), {f"beauty.{name}": np.ascontiguousarray(rgb[..., i])
+                                                       for i, name in enumerate("RGB")})
+    with OpenEXR.File([passes, image]) as exr:
+        exr.write(str(tmp_path / "parts.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
+
+
+def test_a_lone_unprefixed_channel_beside_the_image_layer_is_refused_not_mixed_in(tmp_path):
+    """R = 9 beside beauty.R/G/B = 1/2/3 read as [9, 2, 3]: the plain R overwrote the layer's."""
+    channels = {f"beauty.{colour}": np.full((4, 4), value, np.float32) for colour, value in zip("RGB", (1, 2, 3))}
+    channels["R"] = np.full((4, 4), 9.0, np.float32)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, channels).write(str(tmp_path / "mixed.exr"))
+    with pytest.raises(InputError, match=r"mixed.exr: unprefixed channel R beside the colour layer beauty"):
+        read_exr(tmp_path / "mixed.exr")
