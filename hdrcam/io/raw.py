@@ -319,19 +319,24 @@ def _read(path: Path, with_pixels: bool) -> tuple[RawMetadata, np.ndarray | None
     return metadata, bayer
 
 
-PHASE_ONE_MARKS = (b"IIII", b"MMMM")  # LibRaw's identify() reads a file with either in its first 32 bytes as a
-# Phase One IIQ (parse_phase_one), before it looks for any other format
-PHASE_ONE_HEADER_BYTES = 32
+PHASE_ONE_SEARCH_BYTES = 32  # LibRaw's identify() looks for "MMMM", then "IIII", in a file's first 32 bytes
+PHASE_ONE_MAGIC = {b"MMMM": (4, b"Raw"), b"IIII": (5, b"waR")}  # then "RawI" in that byte order 4 bytes on
 
 
 def _is_phase_one(path: Path) -> bool:
-    """Whether LibRaw takes the file for a Phase One IIQ. Its compressed IIQ decoders leave the data undeveloped:
-    LibRaw reports a black level of 0 (LibRaw/LibRaw#432: IQ180 data bottoming out at 238 DN) and subtracts the
-    back's black level, per row and column, and applies its sensor corrections in raw2image_ex
-    (phase_one_subtract_black, phase_one_correct), which rawpy's raw_image never passes through."""
+    """Whether LibRaw takes the file for a Phase One IIQ: a byte-order mark in its first PHASE_ONE_SEARCH_BYTES
+    followed by the format's magic (parse_phase_one returns at once without it, and the file goes on as TIFF).
+    Its compressed IIQ decoders leave the data undeveloped: LibRaw reports a black level of 0 (LibRaw/LibRaw#432:
+    IQ180 data bottoming out at 238 DN) and subtracts the back's black level, per row and column, and applies its
+    sensor corrections in raw2image_ex (phase_one_subtract_black, phase_one_correct), which rawpy's raw_image
+    never passes through."""
     with open(path, "rb") as file:
-        head = file.read(PHASE_ONE_HEADER_BYTES)
-    return any(mark in head for mark in PHASE_ONE_MARKS)
+        head = file.read(PHASE_ONE_SEARCH_BYTES + 8)
+    for mark, (offset, magic) in PHASE_ONE_MAGIC.items():
+        at = head.find(mark, 0, PHASE_ONE_SEARCH_BYTES)
+        if at >= 0:
+            return head[at + offset:at + offset + 3] == magic
+    return False
 
 
 @contextlib.contextmanager

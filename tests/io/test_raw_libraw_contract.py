@@ -75,10 +75,10 @@ def test_the_cfa_tile_and_its_black_levels_start_at_the_first_visible_pixel(tmp_
     assert np.allclose(np.subtract(site_medians, frame.metadata.black_level_dn), 40, atol=2)  # each site's own
 
 
-IIQ_HEADER = b"IIII\x01\x00\x00\x00"  # a Phase One IIQ's first bytes (LibRaw also looks for MMMM in the first 32)
+IIQ_HEADER = b"IIIIIwaR"  # a Phase One IIQ's first bytes: a byte-order mark, then "RawI" in that order
 
 
-@pytest.mark.parametrize("header", [IIQ_HEADER, b"II*\x00\x08\x00\x00\x00" + bytes(8) + b"MMMM"])
+@pytest.mark.parametrize("header", [IIQ_HEADER, b"II*\x00\x08\x00\x00\x00" + bytes(8) + b"MMMMRawI"])
 def test_a_phase_one_iiq_is_refused_before_its_undeveloped_data_is_read(tmp_path, monkeypatch, header):
     """LibRaw reports black 0 for compressed IIQs and subtracts the back's black level (and applies its sensor
     corrections) only when it develops the file: the data, bottoming out at 238 DN on an IQ180 (LibRaw/LibRaw#432),
@@ -105,3 +105,14 @@ def test_a_fuji_superccd_raf_is_refused_by_its_pattern(tmp_path, monkeypatch):
     path.write_bytes(b"FUJIFILMCCD-RAW " + bytes(112))
     with pytest.raises(InputError, match=r"DSCF0001\.RAF: colour filter RGBG of 4 x 4 is not a 2 x 2 RGB Bayer"):
         read_raw(path)
+
+
+@pytest.mark.parametrize("header", [b"II*\x00\x08\x00\x00\x00IIII" + bytes(8), b"MMMM\x00\x00\x00\x00"])
+def test_a_byte_order_mark_without_the_iiq_magic_is_no_phase_one_file(tmp_path, header):
+    """LibRaw's parse_phase_one returns at once unless "RawI" follows the mark, and the file goes on as TIFF: four
+    0x49 bytes among a TIFF's first 32 made hdrcam refuse it as an IIQ."""
+    from hdrcam.io.raw import _is_phase_one
+
+    path = tmp_path / "DSC00001.ARW"
+    path.write_bytes(header + bytes(120))
+    assert not _is_phase_one(path)
