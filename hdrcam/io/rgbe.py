@@ -79,26 +79,34 @@ def _run_length_scanline(data: bytes, position: int, scanline: np.ndarray) -> in
 def _old_style_scanline(buffer: np.ndarray, position: int, scanline: np.ndarray, previous) -> int:
     """Decode one flat or old-style run-length scanline starting at ``position`` into ``scanline`` (length x 4);
     ``previous``: the last pixel of the scanline before (a run at the start repeats it), None for the first; the
-    position after it."""
+    position after it. The records are taken in windows of as many as the pixels still to fill (each gives one,
+    but a repeat record of count 0): a window's repeat records are found in one pass, the flat stretches between
+    them copied whole."""
     length, filled, shift = scanline.shape[0], 0, 0
     while filled < length:
-        available = min(length - filled, (buffer.size - position) // 4)
-        if available == 0:
+        records = buffer[position:position + 4 * (length - filled)]
+        records = records[:records.size // 4 * 4].reshape(-1, 4)
+        if not records.size:
             raise DamagedPixels("the file ends inside it (truncated)")
-        records = buffer[position:position + 4 * available].reshape(-1, 4)
-        repeats = np.flatnonzero((records[:, 0] == 1) & (records[:, 1] == 1) & (records[:, 2] == 1))
-        flat = int(repeats[0]) if repeats.size else available
-        scanline[filled:filled + flat] = records[:flat]
-        filled, position = filled + flat, position + 4 * flat
-        shift = 0 if flat else shift
-        if not repeats.size:
-            continue
-        count = int(records[flat, 3]) << shift
-        source = scanline[filled - 1] if filled else previous
-        if source is None or filled + count > length:
-            raise DamagedPixels("a repeat record has no pixel to repeat or goes past its end (damaged)")
-        scanline[filled:filled + count] = source
-        filled, position, shift = filled + count, position + 4, shift + 8
+        used = 0
+        for index in np.flatnonzero((records[:, 0] == 1) & (records[:, 1] == 1) & (records[:, 2] == 1)).tolist():
+            flat = min(index - used, length - filled)  # the flat pixels before this repeat record
+            scanline[filled:filled + flat] = records[used:used + flat]
+            filled, used = filled + flat, used + flat
+            if filled == length:  # the record belongs to the next scanline
+                break
+            shift = shift if flat == 0 else 0  # consecutive repeat records count in higher bytes
+            count = int(records[used, 3]) << shift
+            source = scanline[filled - 1] if filled else previous
+            if source is None or filled + count > length:
+                raise DamagedPixels("a repeat record has no pixel to repeat or goes past its end (damaged)")
+            scanline[filled:filled + count] = source
+            filled, used, shift = filled + count, used + 1, shift + 8
+        else:  # the window's records after its last repeat record are flat pixels
+            flat = min(records.shape[0] - used, length - filled)
+            scanline[filled:filled + flat] = records[used:used + flat]
+            filled, used, shift = filled + flat, used + flat, shift if flat == 0 else 0
+        position += 4 * used
     return position
 
 
