@@ -118,12 +118,12 @@ class UsbTransport:
         alone, then its payload (ZLP after the payload when that is whole packets), as libgphoto2's
         ptp_usb_senddata writes to such a device."""
         packet = container.pack()
-        transfers = [packet]
-        if self.split_header_data and container.kind == ContainerType.DATA and len(packet) > HEADER_SIZE:
-            transfers = [packet[:HEADER_SIZE], packet[HEADER_SIZE:]]
         if container.kind == ContainerType.COMMAND:
             self._send_command(packet, timeout_ms)
             return
+        transfers = [packet]
+        if self.split_header_data and container.kind == ContainerType.DATA and len(packet) > HEADER_SIZE:
+            transfers = [packet[:HEADER_SIZE], packet[HEADER_SIZE:]]
         with _usb_errors(self, "sending", timeout_ms):
             for transfer in transfers:
                 self.bulk_out.write(transfer, timeout_ms)
