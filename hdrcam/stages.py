@@ -240,8 +240,8 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     ``psf`` may be None with ``resume``: the run's own PSF file.
 
     ``partner`` (None: true for a new run, a resumed run's own choice): when the starting checkpoint NAME.pt has
-    a partner NAME-partner.pt beside it (a
-    second network trained behind the same PSF, which reconstruct runs with it; the shipped checkpoint has one),
+    a partner NAME-partner.pt beside it (a second network trained behind the same PSF, which reconstruct runs
+    with it; the shipped checkpoint has one),
     the partner is fine-tuned next, from its own weights with the same options (PSF, data, steps, batch, crop,
     learning rate, precision; seed + 1, so that it draws other batches than its model), in the run folder
     ``out``/partner, and its final network is written atomically to ``out``/model-partner.pt, where reconstruct
