@@ -125,6 +125,8 @@ class Faults:
     iso_auto: bool = False  # 0xD21E reports Auto (0xFFFFFF)
     iso_multi_frame_nr: bool = False  # 0xD21E has Multi Frame Noise Reduction in its high byte
     iso_max: int | None = None  # the body offers ISO up to this only: 0xD21E lists no more, a step stops there
+    extended_isos: tuple[int, ...] = ()  # ISOs beyond 100-25600 the body also lists and steps through (an A7's 50,
+    # 64, 80 below, 32000-51200 above: libgphoto2 config.c steps through the body's own list)
     iso_listed_beyond_max: bool = False  # with iso_max, 0xD21E still lists the ISOs above it (config.c: Sony
     # "seems to report values in an enum that are not actually supported under certain configurations (e.g. ISO)")
     image_quality: int = 0x10  # 0x5004: 0x10 RAW, 0x13 RAW + JPEG (two objects per shot), 0x03 JPEG fine only;
@@ -599,7 +601,8 @@ class EmulatedSonyA7:
     def _offered_isos(self) -> tuple[int, ...]:
         """The ISOs this body steps through (Faults.iso_max)."""
         top = self.faults.iso_max
-        return ISO_VALUES if top is None else ISO_VALUES[:ISO_VALUES.index(top) + 1]
+        return tuple(sorted((*(ISO_VALUES if top is None else ISO_VALUES[:ISO_VALUES.index(top) + 1]),
+                             *self.faults.extended_isos)))
 
     def _focus_found(self) -> int:
         """0xD213: 2 once an AF body has focused after the half press, else 1."""

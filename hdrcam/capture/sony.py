@@ -36,6 +36,7 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import importlib
+import math
 import os
 import struct
 from collections.abc import Iterator
@@ -45,7 +46,7 @@ import usb.backend
 import usb.core
 
 from hdrcam.capture.camera import CameraError, CameraNotFound, CapturedFrame, ExposureSettings
-from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES, iso_setting, nearest_shutter, shutter_from_ptp
+from hdrcam.capture.notches import ISO_AUTO, ISO_VALUES, SHUTTER_NOTCHES, iso_setting, nearest_shutter, shutter_from_ptp
 from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VENDOR_EXTENSION_ID,
                                       SINGLE_SHOT_DRIVE, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND_VALUES,
                                       SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_ISO_NR_SHIFT, SONY_MANUFACTURER,
@@ -312,17 +313,31 @@ class SonyA7Camera:
                           len(SHUTTER_NOTCHES), lambda index: f"shutter {SHUTTER_NOTCHES[index].label}")
         if iso is not None:
             self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES),
-                          lambda index: f"ISO {ISO_VALUES[index]}")
+                          self._iso_name)
         return self.settings()
+
+    def _iso_name(self, index: int) -> str:
+        """'ISO N' for a notch of :meth:`_iso_index`: the value the body lists for it (its extended ones too),
+        else ISO_VALUES'."""
+        descriptor = self.properties.get(Property.SONY_ISO)
+        for value in (*(descriptor.form if descriptor else ()), *ISO_VALUES):
+            with contextlib.suppress(CameraError):
+                if self._iso_index(value) == index:
+                    return f"ISO {value & 0xFFFFFF}"
+        return f"ISO notch {index}"
 
     @staticmethod
     def _iso_index(value: int) -> int:
+        """The notch of a 0xD21E value: 1/3-stop steps from ISO 100 - the index in ISO_VALUES, and beyond them the
+        extended ISOs a body also lists and steps through (an A7's 50, 64, 80: -3 to -1; 32000 and up: 25 on), so
+        that a step overshooting onto one, or a body left on one, is stepped back like any other notch (they ended
+        the capture as "ISO is on Auto or an extended value")."""
         if value >> SONY_ISO_NR_SHIFT:
             raise CameraError(_MFNR_MESSAGE)
         value &= 0xFFFFFF
-        if value not in ISO_VALUES:
-            raise CameraError("ISO is on Auto or an extended value: set a fixed ISO between 100 and 25600")
-        return ISO_VALUES.index(value)
+        if value == ISO_AUTO or value == 0:
+            raise CameraError("ISO is on Auto: set a fixed ISO between 100 and 25600")
+        return round(3 * math.log2(value / ISO_VALUES[0]))
 
     def _step_to(self, code: int, target: int, index_of, notches: int, name_of) -> None:
         """Step ``code`` one notch at a time to the notch ``target``; handles direction and overshoot. A target the
@@ -357,7 +372,7 @@ class SonyA7Camera:
             return
         offered = set()
         for value in {*descriptor.form, *(descriptor.secondary_form or ())}:
-            with contextlib.suppress(CameraError):  # Auto, an extended ISO, Bulb: no notch of hdrcam's
+            with contextlib.suppress(CameraError):  # Auto, Bulb: no notch of hdrcam's
                 offered.add(index_of(value))
         if not offered or target in offered:
             return

@@ -508,3 +508,26 @@ def test_a_command_refused_by_a_stalled_out_pipe_is_sent_once_more_after_clearin
                for i, w in enumerate(writes) if w[6:8] == b"\x07\x92" and w[4:6] == b"\x01\x00"]
     assert presses == [(0xD2C1, 2), (0xD2C2, 2), (0xD2C2, 1), (0xD2C1, 1)] and body.downloads == 1
     assert len(body.shots) == 1
+
+
+EXTENDED_ISOS = (50, 64, 80, 32000, 40000, 51200)  # what an A7 lists beyond 100-25600
+
+
+def test_a_body_left_on_an_extended_iso_is_stepped_to_the_asked_one():
+    """libgphoto2 config.c steps through the body's own list; hdrcam knew no notch for ISO 80 and refused ("ISO is
+    on Auto or an extended value") a body the user had left there."""
+    camera, body = emulated(extended_isos=EXTENDED_ISOS)
+    body.camera.set_iso(80)
+    with camera:
+        assert camera.set_exposure(iso=200).iso == 200
+        assert body._step_count == 4  # 80 -> 100 -> 125 -> 160 -> 200
+
+
+def test_a_step_overshooting_onto_an_extended_iso_is_stepped_back():
+    """A body that moves two notches on a step lands beyond 25600 on 32000: the capture ended there, with the body
+    left on it, as 'ISO is on Auto or an extended value'."""
+    camera, body = emulated(extended_isos=EXTENDED_ISOS, overshoot_every=2)
+    body.camera.set_iso(16000)
+    with camera:
+        assert camera.set_exposure(iso=25600).iso == 25600
+        assert body._step_count == 3  # 16000 -> 20000, -> 32000 (two notches), -> 25600
