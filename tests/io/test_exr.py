@@ -387,27 +387,17 @@ def test_several_colour_layers_none_of_them_the_image_are_refused_naming_them(tm
         read_exr(tmp_path / "passes.exr")
 
 
-def test_a_multi_part_file_whose_image_is_a_named_layer_is_read_from_that_part(tmp_path):
+@pytest.mark.parametrize("first", [
+    ["depth.Z"],  # a part without colour first
+    [f"{layer}.{colour}" for layer in ("diffuse", "specular") for colour in "RGB"],  # passes first: the first part
+])  # with any colour layers was taken, and the file refused as having no known image
+def test_a_multi_part_file_whose_image_is_a_named_layer_is_read_from_that_part(tmp_path, first):
     rgb = np.random.default_rng(4).uniform(0, 4, (6, 8, 3)).astype(np.float32)
     header = {"type": OpenEXR.scanlineimage}
-    depth = OpenEXR.Part(dict(header, name="depth"), {"depth.Z": np.ones((6, 8), np.float32)})
+    leading = OpenEXR.Part(dict(header, name="first"), {name: np.ones((6, 8), np.float32) for name in first})
     image = OpenEXR.Part(dict(header, name="beauty"), {f"beauty.{name}": np.ascontiguousarray(rgb[..., i])
                                                        for i, name in enumerate("RGB")})
-    with OpenEXR.File([depth, image]) as exr:
-        exr.write(str(tmp_path / "parts.exr"))
-    np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
-
-
-def test_a_passes_part_before_the_beauty_part_does_not_hide_the_image(tmp_path):
-    """The first part with any colour layers was taken: passes (diffuse, specular) before the beauty part made the
-    file refused as having no known image."""
-    rgb = np.random.default_rng(6).uniform(0, 4, (6, 8, 3)).astype(np.float32)
-    header = {"type": OpenEXR.scanlineimage}
-    passes = OpenEXR.Part(dict(header, name="passes"), {f"{layer}.{colour}": np.ones((6, 8), np.float32)
-                                                        for layer in ("diffuse", "specular") for colour in "RGB"})
-    image = OpenEXR.Part(dict(header, name="beauty"), {f"beauty.{name}": np.ascontiguousarray(rgb[..., i])
-                                                       for i, name in enumerate("RGB")})
-    with OpenEXR.File([passes, image]) as exr:
+    with OpenEXR.File([leading, image]) as exr:
         exr.write(str(tmp_path / "parts.exr"))
     np.testing.assert_array_equal(read_exr(tmp_path / "parts.exr").rgb(), rgb)
 
