@@ -52,6 +52,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.exr import read_exr, write_exr
     from hdrcam.io.atomic import write_text_atomic
     from hdrcam.io.png import write_png
+    from hdrcam.calibrate.psf_compare import psf_l1 as psf_l1_of
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import log_average_luminance, tonemap_rgb
     from hdrcam.limits import check_image_size
@@ -91,7 +92,7 @@ def run(arguments: argparse.Namespace) -> int:
                           str(calibration / "psf.exr"), "--out", str(out / "6-reconstruction")], timings)
 
     measured = load_psf(calibration / "psf.exr")
-    psf_l1 = _psf_l1(measured, shipped.psf)
+    psf_l1 = [round(value, 4) for value in psf_l1_of(measured, shipped.psf)]
     truth_rgb = read_exr(truth).rgb()
     frame_rgb = read_exr(frame).rgb()
     hdr_rgb = read_exr(out / "6-reconstruction" / "5-night-frame.exr").rgb()
@@ -110,16 +111,6 @@ def run(arguments: argparse.Namespace) -> int:
                       "measured_psf_l1_vs_design": psf_l1,
                       "index": str(out / "index.md")}))
     return 0
-
-
-def _psf_l1(measured, design) -> list[float]:
-    """Per-channel L1 between two unit-sum PSFs (the larger cropped to the smaller)."""
-    import numpy as np
-
-    size = min(measured.shape[-1], design.shape[-1])
-    crops = [p[:, (p.shape[-1] - size) // 2:(p.shape[-1] + size) // 2, (p.shape[-1] - size) // 2:
-               (p.shape[-1] + size) // 2] for p in (measured, design)]
-    return [round(float(np.abs(a - b).sum()), 4) for a, b in zip(*crops)]
 
 
 def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1, partner: Path | None, *,

@@ -9,23 +9,14 @@ import numpy as np
 import pytest
 
 from hdrcam.calibrate.effective_psf import green_centroid_offset
+from hdrcam.calibrate.psf_compare import centred_on_green
 from hdrcam.capture.scene import load_scene
 from hdrcam.capture.simulated import simulation_psf
 from hdrcam.cli import main
 from hdrcam.io.exr import read_exr
-from hdrcam.optics.subpixel import box_shift, split_position
 from hdrcam.profiles import load_profile
 
 SEED = 3
-
-
-def centred(psf: np.ndarray) -> np.ndarray:
-    """The true PSF moved (box model) so its green centroid sits on the centre pixel, as calibration does."""
-    offset_y, offset_x = green_centroid_offset(psf)
-    index_y, fraction_y = split_position(-offset_y)
-    index_x, fraction_x = split_position(-offset_x)
-    size = psf.shape[-1]
-    return box_shift(psf, fraction_y, fraction_x)[:, -index_y:-index_y + size, -index_x:-index_x + size]
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +36,7 @@ def test_calibrated_psf_matches_the_true_psf(pinhole_bracket, tmp_path, capsys):
     assert main(["calibrate", "psf", str(pinhole_bracket), "--darks", str(pinhole_bracket / "darks"),
                  "--out", str(out), "--profile", "simulated"]) == 0
     profile = load_profile("simulated")
-    truth = centred(simulation_psf(profile, "doe").astype(np.float64))
+    truth = centred_on_green(simulation_psf(profile, "doe").astype(np.float64))
     measured = read_exr(out / "psf.exr").rgb().transpose(2, 0, 1).astype(np.float64)
     np.testing.assert_allclose(measured.sum(axis=(1, 2)), 1.0, rtol=1e-5)
     l1 = np.abs(measured - truth).sum(axis=(1, 2))

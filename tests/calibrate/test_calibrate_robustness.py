@@ -111,14 +111,14 @@ def test_rigid_pinhole_grids_at_spread_phases_pass(tmp_path, capsys, recwarn, mo
     from hdrcam.capture.simulated import simulation_psf
     from hdrcam.io.exr import read_exr
     from hdrcam.profiles import load_profile
-    from tests.calibrate.test_calibrate_cli import centred
+    from hdrcam.calibrate.psf_compare import centred_on_green
 
     _rigid_grid(tmp_path / "bracket", monkeypatch, pitch_px)
     capsys.readouterr()
     recwarn.clear()
     assert _calibrate(tmp_path / "bracket", tmp_path / "r") == 0
     assert capsys.readouterr().err == "" and not [str(w.message) for w in recwarn.list]
-    truth = centred(simulation_psf(load_profile("simulated"), "doe").astype(np.float64))
+    truth = centred_on_green(simulation_psf(load_profile("simulated"), "doe").astype(np.float64))
     start = truth.shape[-1] // 2 - 7
     truth = truth[:, start:start + 15, start:start + 15]
     truth /= truth.sum(axis=(1, 2), keepdims=True)

@@ -127,8 +127,7 @@ class UsbTransport:
         with _usb_errors(self, "sending", timeout_ms):
             for transfer in transfers:
                 self.bulk_out.write(transfer, timeout_ms)
-            if len(transfers[-1]) % self.bulk_out.wMaxPacketSize == 0:
-                self.bulk_out.write(b"", timeout_ms)
+        self._end_transfer(transfers[-1], timeout_ms)
 
     def _send_command(self, packet: bytes, timeout_ms: int) -> None:
         """Write a command container (one short packet); a write refused by a stalled pipe or an I/O error, the
@@ -144,7 +143,12 @@ class UsbTransport:
                 self.device.clear_halt(self.bulk_out)
             with _usb_errors(self, "sending", timeout_ms):
                 self.bulk_out.write(packet, timeout_ms)
-        if len(packet) % self.bulk_out.wMaxPacketSize == 0:  # only with packets of 32 bytes or less (full speed)
+        self._end_transfer(packet, timeout_ms)  # a ZLP only with packets of 32 bytes or less (full speed)
+
+    def _end_transfer(self, last: bytes, timeout_ms: int) -> None:
+        """A zero-length packet after ``last``, the transfer just written, when it filled whole packets: the device
+        would otherwise wait for more of it."""
+        if len(last) % self.bulk_out.wMaxPacketSize == 0:
             with _usb_errors(self, "sending", timeout_ms):
                 self.bulk_out.write(b"", timeout_ms)
 
