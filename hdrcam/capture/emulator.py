@@ -42,8 +42,9 @@ import usb.core
 
 from hdrcam.capture.notches import ISO_VALUES, SHUTTER_NOTCHES
 from hdrcam.capture.notches import ISO_AUTO
-from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND,
-                                      SONY_FOCUS_MANUAL, SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG,
+from hdrcam.capture.ptp.codes import (SONY_A7_PC_REMOTE_PRODUCT_ID, SONY_ABSOLUTE_EXPOSURE_PROPERTIES,
+                                      SONY_EXPOSURE_MODE_M, SONY_FOCUS_FOUND, SONY_FOCUS_MANUAL,
+                                      SONY_IN_MEMORY_OBJECT, SONY_PENDING_IMAGE_FLAG, SONY_PROTOCOL_MODE_2,
                                       SONY_RAW_FORMAT, SONY_USB_VENDOR_ID, SONY_VENDOR_EXTENSION_ID, ClassRequest,
                                       STARTUP_WAIT_MODELS, STARTUP_WAIT_S, ContainerType, DataType, Event, Operation,
                                       Property, Response)
@@ -162,6 +163,15 @@ class Faults:
     # STARTUP_WAIT_S of OpenSession (library.c camera_sony_capture: "need around 3 seconds startup time")
     session_ids_in_use: int = 0  # OpenSession with an id up to this is answered InvalidTransactionID (an id the
     # body still holds for an earlier host; library.c camera_init tries the next ids)
+    absolute_exposure: bool = False  # a newer body: its 0x9202 answer (and DeviceInfo) lists ShutterSpeed2 (0xD229)
+    # and ISO2 (0xD226), 0x9209 reports both (0xD229 enumerating its shutter times again), and 0x9205 on either with
+    # a listed u32 value sets it (landing after Latencies.step_s) - libgphoto2 config.c _put_Sony_ShutterSpeed
+    # ("new style") and _put_Sony_ISO2, chosen by have_prop on those codes; 0xD20D/0xD21E still step with 0x9207
+    absolute_set_refused: bool = False  # with absolute_exposure: 0x9205 on 0xD229/0xD226 is answered
+    # DevicePropNotSupported
+    absolute_set_ignored: bool = False  # with absolute_exposure: 0x9205 on 0xD229/0xD226 answered OK, nothing changes
+    sdio_protocol_version: int = SONY_PROTOCOL_MODE_2  # 0x9202's version (0x12C on bodies of Sony's protocol 300;
+    # libgphoto2 does not look at it to choose absolute setting)
 
 
 def _is_split_data_header(transfer: bytes) -> bool:
@@ -230,6 +240,7 @@ class EmulatedSonyA7:
         self.connected = True
         self.lens_covered = False
         self.priority_mode = 0  # 0xD25A: 0 camera, 1 application (set by the host with 0x9205)
+        self.absolute_sets: list[tuple[int, int]] = []  # (property, value) of each 0x9205 taken on 0xD229/0xD226
         self._out_transfer = bytearray()
         self._out_header = b""  # a data container's header that came in a transfer of its own
         self._answer_due_s: float | None = None  # when a slow answer (Faults.slow_operation) may be read
@@ -460,7 +471,7 @@ class EmulatedSonyA7:
         texts = ("Sony Corporation", self.faults.model, "3.20", f"{self.camera.seed:08d}")
         operations = tuple(sorted(code for code in Operation if not (self.faults.not_pc_remote and code >> 12 == 9)))
         info = DeviceInfo(100, self.faults.vendor_extension_id, 100, "Sony PTP Extensions", 0,
-                          operations, tuple(sorted(Event)), tuple(sorted(Property)), (SONY_RAW_FORMAT,),
+                          operations, tuple(sorted(Event)), self._property_codes(), (SONY_RAW_FORMAT,),
                           (SONY_RAW_FORMAT,), *texts)
         packed = info.pack()
         left_out = sum(len(Writer().string(text).bytes()) for text in texts[self.faults.device_info_strings:])
@@ -477,17 +488,42 @@ class EmulatedSonyA7:
             return b"", Response.OK
         # libgphoto2 ptp_sony_get_vendorpropcodes: u16 version, u32-counted u16 codes, optionally a second list
         operations_and_events = [int(c) for c in (*Operation, *Event)]
-        properties = [int(c) for c in Property]
-        return (struct.pack(f"<HI{len(operations_and_events)}H", 0xC8, len(operations_and_events),
+        properties = [int(c) for c in self._property_codes()]
+        return (struct.pack(f"<HI{len(operations_and_events)}H", self.faults.sdio_protocol_version,
+                            len(operations_and_events),
                             *operations_and_events)
                 + struct.pack(f"<I{len(properties)}H", len(properties), *properties)), Response.OK
 
-    def _op_9205(self, request, payload):  # SetControlDeviceA: only the priority mode (0xD25A, INT8)
-        code = request.params[0] if request.params else 0
+    def _property_codes(self) -> tuple[int, ...]:
+        """The property codes DeviceInfo and 0x9202 list: ShutterSpeed2 and ISO2 on a newer body only."""
+        return tuple(sorted(code for code in Property if self.faults.absolute_exposure
+                            or code not in SONY_ABSOLUTE_EXPOSURE_PROPERTIES))
+
+    def _op_9205(self, request, payload):  # SetControlDeviceA: the priority mode (0xD25A, INT8); a newer body's
+        code = request.params[0] if request.params else 0  # ShutterSpeed2 and ISO2 (UINT32)
         if code == Property.SONY_PRIORITY_MODE and payload is not None and len(payload) == 1:
             self.priority_mode = struct.unpack("<b", payload)[0]
             return Response.OK
+        if code in SONY_ABSOLUTE_EXPOSURE_PROPERTIES and self.faults.absolute_exposure:
+            if self.faults.absolute_set_refused:
+                return Response.DEVICE_PROP_NOT_SUPPORTED
+            if payload is None or len(payload) != 4:
+                return Response.PARAMETER_NOT_SUPPORTED
+            value = struct.unpack("<I", payload)[0]
+            listed = self._shutter_values() if code == Property.SONY_SHUTTER_SPEED_2 else self._offered_isos()
+            if value not in listed:
+                return Response.INVALID_DEVICE_PROP_VALUE
+            self.absolute_sets.append((code, value))
+            if not self.faults.absolute_set_ignored:
+                self._steps.append((self.clock.monotonic() + self.latencies.step_s, code, value))
+            return Response.OK
         return Response.DEVICE_PROP_NOT_SUPPORTED
+
+    @staticmethod
+    def _shutter_values() -> tuple[int, ...]:
+        """0xD229's enumeration on a newer body: every notch, in 0xD20D's encoding (300/10 for 30 s, as config.c
+        _get_Sony_ShutterSpeed notes Sony reports them)."""
+        return tuple(notch.ptp_value for notch in SHUTTER_NOTCHES)
 
     def _op_9209(self, request, payload):  # GetAllDevicePropData
         return pack_sony_properties(self._descriptors()), Response.OK
@@ -585,7 +621,11 @@ class EmulatedSonyA7:
         for step in [s for s in self._steps if s[0] <= now]:
             self._steps.remove(step)
             _, code, delta = step
-            if code == Property.SONY_SHUTTER_SPEED:
+            if code == Property.SONY_SHUTTER_SPEED_2:  # an absolute set: delta is the value
+                self.camera.set_notch(SHUTTER_NOTCHES[self._shutter_values().index(delta)])
+            elif code == Property.SONY_ISO_2:
+                self.camera.set_iso(delta)
+            elif code == Property.SONY_SHUTTER_SPEED:
                 index = min(max(self.camera.notch.index + delta, 0), len(SHUTTER_NOTCHES) - 1)
                 self.camera.set_notch(SHUTTER_NOTCHES[index])
             else:
@@ -647,6 +687,13 @@ class EmulatedSonyA7:
             PropertyDescriptor(Property.SONY_FOCUS_FOUND, DataType.UINT8, 0, 1, 1, self._focus_found()),
             PropertyDescriptor(Property.SONY_PENDING_IMAGES, DataType.UINT16, 0, 1, 0, pending),
         ]
+        if faults.absolute_exposure:
+            descriptors += [
+                PropertyDescriptor(Property.SONY_SHUTTER_SPEED_2, DataType.UINT32, 1, 1, 0, shutter, FORM_ENUMERATION,
+                                   self._shutter_values()),
+                PropertyDescriptor(Property.SONY_ISO_2, DataType.UINT32, 1, 1, 100, iso, FORM_ENUMERATION,
+                                   (*listed, ISO_AUTO), secondary),
+            ]
         if faults.odd_property_types:  # codes of the A7's lens/body info; the types are what matters here
             descriptors += [
                 PropertyDescriptor(0xD2A0, DataType.ARRAY | DataType.UINT16, 0, 1, (), (1, 2, 3)),

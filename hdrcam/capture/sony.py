@@ -11,6 +11,23 @@ unknown, as libgphoto2's ptp_sony_get_vendorpropcodes does ("No special operatio
 PC-remote mode fails at 0x9209 anyway. The handshake refuses, before any shot, a body not on M (0x500E), recording
 JPEG only (0x5004 without its RAW bit) or on Bulb, and records focus mode, drive mode and firmware.
 
+Newer bodies set shutter and ISO absolutely. What libgphoto2 does (read in camlibs/ptp2 of gphoto/libgphoto2 at
+ef42524a and 00539518; the codes from ptp.h): (a) it decides per property with config.c have_prop(): the code is in
+DeviceInfo's DevicePropertiesSupported, which library.c fixup_cached_deviceinfo extends with the property codes
+((code & 0x7000) == 0x5000) of the 0x9202(0xC8) answer (ptp.c ptp_sony_get_vendorpropcodes: u16 version, then
+one or two u32-counted u16 lists). ShutterSpeed2 is 0xD229 and ISO2 0xD226; the protocol version is not looked
+at (no check of 0x12C / 300 decides this). (b) config.c _put_Sony_ShutterSpeed ("new style") sends 0x9205
+SetControlDeviceA on 0xD229 with the UINT32 (numerator << 16) | denominator; its ISO menu entry for 0xD226 comes
+before 0xD21E's ("the older Sony do not have d226, so it should pick the next entry") and _put_Sony_ISO2 sends
+0x9205 on 0xD226 with the UINT32 ISO. (c) it does not fall back: the 0x9205 result is returned as the setting's
+result (translate_ptp_result), an error ends the set, and stepping (0x9207 on 0xD20D / 0xD21E) is used only when
+the code is not listed. (d) it neither waits nor reads back after the 0x9205; _get_Sony_ShutterSpeed reads 0xD229's
+descriptor (via 0x9209) when listed, and the ISO entry reads 0xD226's. So here: a body listing 0xD229 (0xD226) has
+its shutter (ISO) read from and set through that code with one 0x9205, a value its enumeration lists; a refusal
+is a CameraError with no stepping. hdrcam then polls 0x9209 until the value reads back (within STEP_TIMEOUT_S,
+else CameraError), which libgphoto2 does not: a frame must be taken at the setting recorded for it. A body that
+lists neither code (the A7) is stepped as before.
+
 After the handshake the priority mode (0xD25A) is set to "application" with 0x9205, as libgphoto2 does;
 a body that does not know it answers with an error, which is logged and ignored.
 
@@ -54,7 +71,8 @@ from hdrcam.capture.ptp.codes import (DRIVE_MODE_NAMES, FOCUS_MODE_NAMES, MTP_VE
                                       SONY_RAW_FORMAT, SONY_RAW_QUALITY_FLAG, SONY_USB_VENDOR_ID,
                                       SONY_VENDOR_EXTENSION_ID, STARTUP_WAIT_MODELS, STARTUP_WAIT_S, Event,
                                       Operation, Property, Response)
-from hdrcam.capture.ptp.datasets import FORM_ENUMERATION, PropertyDescriptor, unpack_sony_properties
+from hdrcam.capture.ptp.datasets import (FORM_ENUMERATION, PropertyDescriptor, unpack_sony_properties,
+                                         unpack_sony_vendor_codes)
 from hdrcam.capture.ptp.session import Clock, PtpSession, ResponseError
 from hdrcam.capture.ptp.transport import Stalled, TransportTimeout, UsbTransport, is_ptp_interface
 from hdrcam.io.atomic import write_bytes_atomic
@@ -171,6 +189,7 @@ class SonyA7Camera:
         self.properties: dict[int, PropertyDescriptor] = {}
         self._list_cut: str | None = None  # why the last 0x9209 answer's list ended early, if it did
         self.protocol_version = 0
+        self.vendor_properties: frozenset[int] = frozenset()  # the property codes 0x9202 listed
         self.firmware = ""
         self._step_sign = {Property.SONY_SHUTTER_SPEED: 1, Property.SONY_ISO: 1}
 
@@ -229,7 +248,9 @@ class SonyA7Camera:
         for attempt in range(SDIO_INFO_ATTEMPTS):
             _, answer = self.session.transact(Operation.SONY_GET_SDIO_EXT_DEVICE_INFO, SONY_PROTOCOL_MODE_2)
             if len(answer) >= 2:
-                return struct.unpack_from("<H", answer)[0]
+                version, codes = unpack_sony_vendor_codes(answer)
+                self.vendor_properties = frozenset(code for code in codes if code & 0x7000 == 0x5000)
+                return version
             self.session.log.append(f"GetSDIOGetExtDeviceInfo answered empty; asked again ({attempt + 1})")
             self.clock.sleep(SDIO_RETRY_S)
         self.session.log.append(f"GetSDIOGetExtDeviceInfo stayed empty after {SDIO_INFO_ATTEMPTS} requests; going on "
@@ -250,10 +271,10 @@ class SonyA7Camera:
             raise CameraError(f"the drive mode is {self.details()['drive_mode']}, not single shooting: set Drive "
                               "Mode to Single Shooting (each frame must be one press at the shutter time hdrcam "
                               "sets)")
-        if self._current(Property.SONY_SHUTTER_SPEED) == 0:
+        if self._current(self._shutter_code) == 0:
             raise CameraError("the shutter is on Bulb: set the mode dial to M and a shutter time "
                               "(Bulb's hot-pixel filter flattens a PSF core)")
-        iso = self.properties.get(Property.SONY_ISO)
+        iso = self.properties.get(self._iso_code)
         if iso is not None and iso.current >> SONY_ISO_NR_SHIFT:
             raise CameraError(_MFNR_MESSAGE)
         quality = self.properties.get(Property.IMAGE_QUALITY)
@@ -300,26 +321,79 @@ class SonyA7Camera:
                            + (f" ({self._list_cut})" if self._list_cut else ""))
 
     # -- exposure --------------------------------------------------------------------------------------------
+    @property
+    def _shutter_code(self) -> int:
+        """0xD229 on a body whose 0x9202 answer lists it (config.c have_prop), else 0xD20D."""
+        return Property.SONY_SHUTTER_SPEED_2 if Property.SONY_SHUTTER_SPEED_2 in self.vendor_properties else \
+            Property.SONY_SHUTTER_SPEED
+
+    @property
+    def _iso_code(self) -> int:
+        """0xD226 on a body whose 0x9202 answer lists it, else 0xD21E."""
+        return Property.SONY_ISO_2 if Property.SONY_ISO_2 in self.vendor_properties else Property.SONY_ISO
+
     def settings(self) -> ExposureSettings:
-        notch = _notch(self._current(Property.SONY_SHUTTER_SPEED))
-        iso = self._current(Property.SONY_ISO) & 0xFFFFFF
+        notch = _notch(self._current(self._shutter_code))
+        iso = self._current(self._iso_code) & 0xFFFFFF
         f_number = self._current(Property.F_NUMBER) / 100.0 if Property.F_NUMBER in self.properties else None
         return ExposureSettings(float(notch.nominal), notch.label, float(iso), f_number)
 
     def set_exposure(self, exposure_s: float | None = None, iso: float | None = None) -> ExposureSettings:
         if exposure_s is not None:
-            target = nearest_shutter(exposure_s).index
-            self._step_to(Property.SONY_SHUTTER_SPEED, target, lambda value: _notch(value).index,
-                          len(SHUTTER_NOTCHES), lambda index: f"shutter {SHUTTER_NOTCHES[index].label}")
+            notch = nearest_shutter(exposure_s)
+
+            def shutter_name(index: int) -> str:
+                return f"shutter {SHUTTER_NOTCHES[index].label}"
+
+            if self._shutter_code == Property.SONY_SHUTTER_SPEED_2:
+                self._set_absolutely(self._shutter_code, notch.index, lambda value: _notch(value).index,
+                                     shutter_name, notch.ptp_value)
+            else:
+                self._step_to(Property.SONY_SHUTTER_SPEED, notch.index, lambda value: _notch(value).index,
+                              len(SHUTTER_NOTCHES), shutter_name)
         if iso is not None:
-            self._step_to(Property.SONY_ISO, ISO_VALUES.index(iso_setting(iso)), self._iso_index, len(ISO_VALUES),
-                          self._iso_name)
+            value = iso_setting(iso)
+            if self._iso_code == Property.SONY_ISO_2:
+                self._set_absolutely(self._iso_code, ISO_VALUES.index(value), self._iso_index, self._iso_name, value)
+            else:
+                self._step_to(Property.SONY_ISO, ISO_VALUES.index(value), self._iso_index, len(ISO_VALUES),
+                              self._iso_name)
         return self.settings()
+
+    def _set_absolutely(self, code: int, target: int, index_of, name_of, default_value: int) -> None:
+        """Set ``code`` (0xD229 or 0xD226) to the notch ``target`` with one 0x9205 UINT32, as libgphoto2's
+        _put_Sony_ShutterSpeed / _put_Sony_ISO2 (module docstring): the value the descriptor's enumeration lists
+        for that notch (``default_value`` when it lists none), refused before any write if not offered; nothing
+        is sent when the body is already there. A refusal is a CameraError (libgphoto2 returns it, it does not
+        step); then 0x9209 is polled until the value reads back."""
+        self._check_offered(code, target, index_of, name_of)
+        if index_of(self._current(code)) == target:
+            return
+        value = default_value
+        descriptor = self.properties.get(code)
+        if descriptor is not None and descriptor.form_flag == FORM_ENUMERATION:
+            for listed in (*descriptor.form, *(descriptor.secondary_form or ())):
+                with contextlib.suppress(CameraError):
+                    if index_of(listed) == target:
+                        value = listed
+                        break
+        try:
+            self.session.transact(Operation.SONY_SET_CONTROL_DEVICE_A, code, data_out=struct.pack("<I", value))
+        except ResponseError as error:
+            raise CameraError(f"the camera refused {name_of(target)} (0x9205 on 0x{code:04X}: {error}); libgphoto2 "
+                              "does not step such a body either: check the mode dial is on M") from None
+        deadline = self.clock.monotonic() + STEP_TIMEOUT_S
+        while index_of(self._current_after_refresh(code)) != target:
+            if self.clock.monotonic() >= deadline:
+                raise CameraError(f"{name_of(target)} was taken (0x9205 on 0x{code:04X}) but the camera still reads "
+                                  f"{name_of(index_of(self._current(code)))} after {STEP_TIMEOUT_S:g} s; is the mode "
+                                  "dial on M?")
+            self.clock.sleep(STEP_POLL_INTERVAL_S)
 
     def _iso_name(self, index: int) -> str:
         """'ISO N' for a notch of :meth:`_iso_index`: the value the body lists for it (its extended ones too),
         else ISO_VALUES'."""
-        descriptor = self.properties.get(Property.SONY_ISO)
+        descriptor = self.properties.get(self._iso_code)
         for value in (*(descriptor.form if descriptor else ()), *ISO_VALUES):
             with contextlib.suppress(CameraError):
                 if self._iso_index(value) == index:

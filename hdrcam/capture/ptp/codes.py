@@ -42,6 +42,7 @@ class Response(IntEnum):
     DEVICE_PROP_NOT_SUPPORTED = 0x200A
     STORE_NOT_AVAILABLE = 0x2013
     DEVICE_BUSY = 0x2019
+    INVALID_DEVICE_PROP_VALUE = 0x201C
     TRANSACTION_CANCELLED = 0x201F
     SESSION_ALREADY_OPEN = 0x201E
 
@@ -64,6 +65,8 @@ class Property(IntEnum):
     SONY_FOCUS_FOUND = 0xD213  # 1 = searching / not focused, 2 = focus found (after a half press)
     SONY_PENDING_IMAGES = 0xD215  # 0x8000 | count: images wait in memory as 0xFFFFC001
     SONY_ISO = 0xD21E  # low 24 bits; 0xFFFFFF = auto; high byte: 1/2 = Multi Frame Noise Reduction (std/high)
+    SONY_ISO_2 = 0xD226  # newer bodies: ISO as 0xD21E's encoding, set absolutely with 0x9205 (libgphoto2 ISO2)
+    SONY_SHUTTER_SPEED_2 = 0xD229  # newer bodies: 0xD20D's encoding, set absolutely with 0x9205 (ShutterSpeed2)
     SONY_PRIORITY_MODE = 0xD25A  # INT8 0 = camera, 1 = application (PC); libgphoto2 sets 1 after the handshake
     SONY_HALF_PRESS = 0xD2C1  # 2 = press, 1 = release (autofocus button)
     SONY_FULL_PRESS = 0xD2C2  # 2 = press, 1 = release (shutter button)
@@ -109,6 +112,9 @@ SONY_FOCUS_FOUND = 2
 SONY_FOCUS_FOUND_VALUES = (2, 3)  # libgphoto2 camera_sony_capture: "0xd213 = 2 or 3 (for rx0)"
 SONY_EXPOSURE_MODE_M = 1
 SONY_PROTOCOL_MODE_2 = 0xC8  # the A7's "old" SDIO protocol: notch stepping only
+# properties a body that sets shutter / ISO absolutely lists in its 0x9202 answer (libgphoto2 config.c have_prop);
+# an A7 lists neither
+SONY_ABSOLUTE_EXPOSURE_PROPERTIES = (Property.SONY_SHUTTER_SPEED_2, Property.SONY_ISO_2)
 CANCEL_EVENT_CODE = 0x4001  # the event code carried by a cancel request
 PTP_INTERFACE = (6, 1, 1)  # still-image class, subclass, protocol
 

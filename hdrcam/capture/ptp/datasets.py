@@ -302,3 +302,22 @@ def unpack_sony_properties(payload: bytes, notes: list[str] | None = None) -> di
     if count and not descriptors:
         raise DatasetError(f"the property list announces {count} descriptors but holds none")
     return {descriptor.code: descriptor for descriptor in descriptors}
+
+
+def unpack_sony_vendor_codes(payload: bytes) -> tuple[int, tuple[int, ...]]:
+    """(protocol version, codes) from a 0x9202 answer, read as libgphoto2's ptp.c ptp_sony_get_vendorpropcodes
+    reads it: a u16 version, then a u32-counted list of u16 codes, then a second such list if the data goes on
+    past the first. An answer too short for a list gives the version alone (0 when there is none: "No special
+    operations sent?"); a list cut short keeps the codes before the cut."""
+    reader = Reader(payload)
+    if reader.remaining < 2:
+        return 0, ()
+    version = reader.u16()
+    codes: list[int] = []
+    for _ in range(2):
+        if reader.remaining < 4:
+            break
+        count = reader.u32()
+        for _ in range(min(count, reader.remaining // 2)):
+            codes.append(reader.u16())
+    return version, tuple(codes)
