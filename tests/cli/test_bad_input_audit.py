@@ -1,0 +1,36 @@
+"""Inputs and arguments found by an audit of every command's bad-input handling: each ends in one line and exit 1,
+never an internal error (exit 3), and leaves nothing behind."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.faults.helpers import assert_failed_with_one_line, run
+
+
+def _png_declaring(path, width: int, height: int) -> None:
+    """A small 16-bit RGB PNG whose IHDR (with a valid CRC) declares ``width`` x ``height`` pixels."""
+    cv2.imwrite(str(path), np.full((8, 8, 3), 30000, np.uint16))
+    data = bytearray(path.read_bytes())
+    data[16:24] = struct.pack(">II", width, height)  # IHDR: length, type, width, height, ...
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])) & 0xFFFFFFFF)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("argv", [
+    lambda frame, out: ["destreak", frame, "--out", out],
+    lambda frame, out: ["simulate", frame, "--psf", "dirac", "--out", out / "frame.exr"],
+], ids=["destreak", "simulate"])
+def test_a_png_declaring_more_pixels_than_opencv_decodes_is_one_line(argv, tmp_path, capsys):
+    """OpenCV raises its own error (not None) for a header beyond 2^30 pixels: it was an internal error, exit 3."""
+    frame = tmp_path / "huge.png"
+    _png_declaring(frame, 100_000, 100_000)
+    out = tmp_path / "out"
+    assert_failed_with_one_line(run(argv(frame, out), capsys), 1, str(frame))
+    assert not out.exists()
+
