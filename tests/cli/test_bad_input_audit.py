@@ -34,3 +34,12 @@ def test_a_png_declaring_more_pixels_than_opencv_decodes_is_one_line(argv, tmp_p
     assert_failed_with_one_line(run(argv(frame, out), capsys), 1, str(frame))
     assert not out.exists()
 
+
+def test_a_bracket_of_absurdly_many_stops_is_refused_in_one_line(tmp_path, capsys):
+    """The longest exposure of --stops 100000 overflowed a float while the refusal was being worded (exit 3)."""
+    out = tmp_path / "bracket"
+    line = assert_failed_with_one_line(run(["capture", "bracket", "--camera", "sim", "--profile", "simulated",
+                                            "--psf", "dirac", "--size", "64x48", "--stops", "100000",
+                                            "--out", out], capsys), 1, "--stops")
+    assert "30 s" in line
+    assert not out.exists()
