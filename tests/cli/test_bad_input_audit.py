@@ -3,6 +3,8 @@ never an internal error (exit 3), and leaves nothing behind."""
 
 from __future__ import annotations
 
+import os
+import stat
 import struct
 import zlib
 
@@ -43,3 +45,18 @@ def test_a_bracket_of_absurdly_many_stops_is_refused_in_one_line(tmp_path, capsy
                                             "--out", out], capsys), 1, "--stops")
     assert "30 s" in line
     assert not out.exists()
+
+
+@pytest.mark.parametrize("through_a_link", [False, True], ids=["itself", "through-a-link"])
+def test_overwrite_never_puts_a_file_in_place_of_a_pipe_or_device(through_a_link, tmp_path, capsys):
+    """A FIFO stands for /dev/null: --overwrite replaced it (a root user's /dev/null) with the EXR."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    out = tmp_path / "link" if through_a_link else fifo
+    if through_a_link:
+        out.symlink_to(fifo)
+    assert_failed_with_one_line(run(["simulate", "night", "--psf", "dirac", "--size", "32", "32", "--out", out,
+                                     "--overwrite"], capsys), 1, str(out), "not a regular file")
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert os.path.islink(out) == through_a_link
+    assert sorted(path.name for path in tmp_path.iterdir()) == sorted({"fifo", out.name})
