@@ -50,13 +50,24 @@ def test_a_bracket_of_absurdly_many_stops_is_refused_in_one_line(tmp_path, capsy
 @pytest.mark.parametrize("through_a_link", [False, True], ids=["itself", "through-a-link"])
 def test_overwrite_never_puts_a_file_in_place_of_a_pipe_or_device(through_a_link, tmp_path, capsys):
     """A FIFO stands for /dev/null: --overwrite replaced it (a root user's /dev/null) with the EXR."""
-    fifo = tmp_path / "fifo"
+    fifo = tmp_path / "fifo.exr"
     os.mkfifo(fifo)
-    out = tmp_path / "link" if through_a_link else fifo
+    out = tmp_path / "link.exr" if through_a_link else fifo
     if through_a_link:
         out.symlink_to(fifo)
     assert_failed_with_one_line(run(["simulate", "night", "--psf", "dirac", "--size", "32", "32", "--out", out,
                                      "--overwrite"], capsys), 1, str(out), "not a regular file")
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
     assert os.path.islink(out) == through_a_link
-    assert sorted(path.name for path in tmp_path.iterdir()) == sorted({"fifo", out.name})
+    assert sorted(path.name for path in tmp_path.iterdir()) == sorted({"fifo.exr", out.name})
+
+
+@pytest.mark.parametrize("outputs", [["--out", "frame.png"], ["--out", "frame.exr", "--truth", "truth.tif"],
+                                     ["--out", "frame"]], ids=["png", "truth-tif", "no-suffix"])
+def test_simulate_names_its_outputs_as_exr_files(outputs, tmp_path, capsys):
+    """simulate wrote OpenEXR bytes under any name (frame.png: an EXR that image viewers cannot open); fuse
+    already asks for NAME.exr."""
+    argv = ["simulate", "night", "--psf", "dirac", "--size", "32", "32",
+            *(tmp_path / word if index % 2 else word for index, word in enumerate(outputs))]
+    assert_failed_with_one_line(run(argv, capsys), 1, str(tmp_path / outputs[-1]), "NAME.exr")
+    assert list(tmp_path.iterdir()) == []
