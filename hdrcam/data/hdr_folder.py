@@ -27,7 +27,7 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
     instead of refused."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: no such file")
+        raise InputError(f"{path}: a folder, not an image file" if path.is_dir() else f"{path}: no such file")
     primaries = None  # an EXR's, converted to Rec. 709 after +Inf is dealt with (a matrix turns it into NaN)
     if path.suffix.lower() == ".exr" or is_exr_file(path):
         exr = read_exr(path, to_rec709=False)

@@ -71,3 +71,12 @@ def test_simulate_names_its_outputs_as_exr_files(outputs, tmp_path, capsys):
             *(tmp_path / word if index % 2 else word for index, word in enumerate(outputs))]
     assert_failed_with_one_line(run(argv, capsys), 1, str(tmp_path / outputs[-1]), "NAME.exr")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_given_as_the_scene_is_named_as_a_folder(tmp_path, capsys):
+    """simulate said 'no such file' of a folder that exists (reconstruct and destreak already say 'is a folder')."""
+    scene = tmp_path / "scene.exr"
+    scene.mkdir()
+    assert_failed_with_one_line(run(["simulate", scene, "--psf", "dirac", "--out", tmp_path / "frame.exr"], capsys),
+                                1, str(scene), "a folder")
+    assert list(tmp_path.iterdir()) == [scene]
