@@ -133,14 +133,16 @@ def _beyond_the_shutter(first: int, stops: int, step: int) -> str:
     """Why ``stops`` exposures ``step`` notches apart from notch ``first`` do not fit the shutter (stops >= 2), and
     the nearest plans that do: a shorter shortest exposure, fewer stops, a smaller EV step."""
     span = (stops - 1) * step
-    longest_s = SHUTTER_NOTCHES[first].true_s * 2.0 ** (span / NOTCHES_PER_EV)
+    doublings = span / NOTCHES_PER_EV  # past about 1000 a float overflows: --stops 100000 is a typo, not a plan
+    longest = (f"{SHUTTER_NOTCHES[first].true_s * 2.0 ** doublings:.4g} s" if doublings < 1000 else
+               f"about 10^{round(math.log10(SHUTTER_NOTCHES[first].true_s) + doublings * math.log10(2))} s")
     fixes = [f"fewer stops (--stops {first // step + 1} or fewer)"]
     if span < len(SHUTTER_NOTCHES):
         fixes.insert(0, f"a shorter shortest exposure (--shortest {_seconds(SHUTTER_NOTCHES[span])} or shorter)")
     if first // (stops - 1) >= 1:
         fixes.append(f"a smaller EV step (--ev-step {_ev_text(first // (stops - 1) / NOTCHES_PER_EV)} or less)")
     plan = f"{stops} exposures {_ev_text(step / NOTCHES_PER_EV)} EV apart from {_seconds(SHUTTER_NOTCHES[first])} s"
-    return f"{plan} would need {longest_s:.4g} s, longer than the shutter's 30 s: choose {_one_of(fixes)}"
+    return f"{plan} would need {longest}, longer than the shutter's 30 s: choose {_one_of(fixes)}"
 
 
 def _one_of(choices: list[str]) -> str:

@@ -57,6 +57,9 @@ def run(arguments: argparse.Namespace) -> int:
         raise InputError(f"--size sets the procedural 'night' scene's frame; {arguments.scene} is captured at its "
                          "own size (crop or resize the file instead)")
     outputs = [arguments.out] + ([arguments.truth] if arguments.truth else [])
+    for option, path in zip(("--out", "--truth"), outputs):  # an EXR named .png fails every other program
+        if path.suffix.lower() != ".exr":
+            raise InputError(f"{option} {path}: simulate writes an OpenEXR file; name it NAME.exr")
     inputs = [] if arguments.scene == "night" else [Path(arguments.scene)]
     inputs += [Path(arguments.psf)] if arguments.psf and arguments.psf not in FIXED_PSFS else []
     inputs += [arguments.checkpoint] if arguments.checkpoint else []

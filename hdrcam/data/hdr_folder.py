@@ -10,8 +10,8 @@ import numpy as np
 
 from hdrcam.colorimetry import in_rec709
 from hdrcam.errors import InputError, failure_message
-from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.exr import is_exr_file, read_exr
+from hdrcam.io.png import opencv_image
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.tiff_image import read_tiff_rgb
 
@@ -27,7 +27,7 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
     instead of refused."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: no such file")
+        raise InputError(f"{path}: a folder, not an image file" if path.is_dir() else f"{path}: no such file")
     primaries = None  # an EXR's, converted to Rec. 709 after +Inf is dealt with (a matrix turns it into NaN)
     if path.suffix.lower() == ".exr" or is_exr_file(path):
         exr = read_exr(path, to_rec709=False)
@@ -42,8 +42,7 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
     elif is_radiance_file(path):
         image = read_radiance(path)
     else:
-        with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
-            image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        image = opencv_image(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:
             raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
         _refuse_display_image(path, image)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import stat
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -44,10 +45,21 @@ def check_writable(path: Path, *, overwrite: bool = False, inputs: Iterable[Path
             raise OutputExistsError(f"{path} is also an input; choose another output path")
     if os.path.isdir(path):
         raise OutputExistsError(f"{path} is a folder where an output file is expected; give a file path")
+    if not _regular_file_or_absent(path):  # --overwrite would put a file in place of /dev/null (as root)
+        raise OutputExistsError(f"{path} is not a regular file (a device, pipe or socket), and an output is written "
+                                "as a new file in its place; give a file path")
     if os.path.lexists(path) and not overwrite:
         raise OutputExistsError(f"{path} already exists; choose another output or pass --overwrite")
     check_destination_folder(path.parent)
     return path
+
+
+def _regular_file_or_absent(path: Path) -> bool:
+    """Whether ``path`` (a link: its target) is a regular file, or nothing yet (a dangling link included)."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:  # absent, a dangling link or a link loop: the checks and the write say what is wrong
+        return True
 
 
 def check_destination_folder(folder: Path) -> None:

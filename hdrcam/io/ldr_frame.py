@@ -30,11 +30,10 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
-from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, lossy_compression, read_exr
 from hdrcam.io.file_magic import starts_with
-from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
+from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind, opencv_image
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
@@ -125,8 +124,7 @@ def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
         return read_tiff_rgb(path)
     if grey := grey_png_kind(path):
         raise InputError(f"{path}: a {grey} PNG (no colour samples): not an RGB image")
-    with c_stderr_silenced():  # OpenCV prints its own lines for a damaged file
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    image = opencv_image(path, cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 3 or image.shape[2] < 3:
         raise InputError(f"{path}: cannot read as an RGB image")
     return cv2.cvtColor(image[..., :3], cv2.COLOR_BGR2RGB)
