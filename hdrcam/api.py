@@ -23,7 +23,7 @@ from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.mirror_agreement import mirror_agreed, mirrored_region, psf_mirror
 from hdrcam.recon.network_agreement import judge_pair
-from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame
+from hdrcam.recon.tiling import TileReport, clipped_mask, reconstruct_frame, refuse_all_clipped
 from hdrcam.recon.window_sizes import DEFAULT_CORE_PX, DEFAULT_HALO_PX, MIN_TILE_PX
 
 FRAME_RANGE_SLACK = 0.01  # black-level noise and demosaicing overshoot just outside [0, 1] are clipped, not refused
@@ -80,7 +80,8 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     a given partner is an InputError); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
-    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6).
+    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). A frame clipped in every channel of
+    every pixel records nothing to reconstruct from: InputError (hdrcam.recon.tiling.refuse_all_clipped).
     """
     for name, value, reader in (("frame", frame, "hdrcam.io.ldr_frame.read_ldr_frame(path)"),
                                 ("model", model, "hdrcam.load_network_model(path)"),
@@ -111,6 +112,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     if isinstance(halo_px, bool) or not isinstance(halo_px, numbers.Integral) or halo_px < 0:
         raise InputError(f"halo {halo_px!r} px: a whole number of pixels, 0 or more")
     frame = np.clip(frame, 0.0, 1.0)
+    refuse_all_clipped(frame)
     if streak_fit and isinstance(partner, str) and partner == "auto":
         partner = None  # the streak fit refits one network's proposal
     partner = resolve_partner(model, partner)

@@ -45,6 +45,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.png import write_png
     from hdrcam.preview import display_oriented, tonemap_rgb
     from hdrcam.recon.destreak import destreak_frame
+    from hdrcam.recon.tiling import refuse_all_clipped
     from hdrcam.recon.windshield_fit import subtract_windshield_streaks
     from hdrcam.train.checkpoint import load_model
 
@@ -62,6 +63,8 @@ def run(arguments: argparse.Namespace) -> int:
     outputs = [(arguments.out / f"{s.stem}.exr", arguments.out / f"{s.stem}.png") for s in arguments.inputs]
     check_outputs_of_inputs(zip(arguments.inputs, outputs), overwrite=arguments.overwrite, inputs=arguments.inputs)
     frames = [read_ldr_frame_and_orientation(source) for source in arguments.inputs]  # RAW: sensor orientation
+    for source, (frame, _) in zip(arguments.inputs, frames):  # every input checked before any work
+        refuse_all_clipped(frame, str(source))
     for source, (frame, orientation), (exr_path, png_path) in zip(arguments.inputs, frames, outputs):
         started = time.perf_counter()
         if network:

@@ -82,7 +82,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.profiles import load_profile
     from hdrcam.api import checked_device, load_network_model, network_windows, reconstruct, resolve_partner
     from hdrcam.recon.streaks import check_streaks
-    from hdrcam.recon.tiling import plan_regions
+    from hdrcam.recon.tiling import plan_regions, refuse_all_clipped
 
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     device = checked_device(compute_device(arguments.device), dtype)  # before any file is read
@@ -99,6 +99,8 @@ def run(arguments: argparse.Namespace) -> int:
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
     frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)
                                  for source in arguments.inputs])  # every input checked before any work
+    for source, frame in zip(arguments.inputs, frames):
+        refuse_all_clipped(frame, str(source))
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
                           core_px=arguments.tile, halo_px=arguments.halo) for frame in frames]
     progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check,

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from hdrcam.recon.network import ReconstructionNet
-from hdrcam.recon.tiling import CLIP_LEVEL, clipped_mask, reconstruct_frame
+from hdrcam.recon.tiling import CLIP_LEVEL, clipped_mask, reconstruct_frame, refuse_all_clipped
 
 FEATHER_PX = 8
 
@@ -64,8 +64,9 @@ def destreak_frame(network: ReconstructionNet, frame: np.ndarray, *, psf_radius_
     clipped values below the clip level, so a later reconstruct saw those lights as less clipped).
 
     ``gate`` False returns the network's I_U everywhere but on clipped channels (for measuring what the gate is
-    worth).
+    worth). InputError for a frame clipped everywhere (hdrcam.recon.tiling.refuse_all_clipped).
     """
+    refuse_all_clipped(frame)
     started = time.perf_counter()
     weight = streak_zone(frame, psf_radius_px) if gate else np.ones(frame.shape[:2], np.float32)
     if not weight.any():

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.ndimage
 import torch
 
+from hdrcam.errors import InputError
 from hdrcam.limits import check_memory
 from hdrcam.recon.cpu_forward import hdr_forward
 from hdrcam.recon.network import ReconstructionNet
@@ -94,6 +95,16 @@ class TileReport:
 def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:
     """H x W bool: the brightest channel reaches ``level``."""
     return np.maximum.reduce([ldr[..., channel] for channel in range(ldr.shape[-1])]) >= level
+
+
+def refuse_all_clipped(frame: np.ndarray, name: str = "the frame") -> None:
+    """InputError when every sample of an H x W x 3 ``frame`` reached CLIP_LEVEL: an all-white frame records
+    neither the scene nor a streak of its highlights, so nothing can be recovered from it (the sensor was
+    flooded: a shorter exposure, a smaller aperture or less gain). A frame with some channel below white keeps
+    what that channel recorded and is not refused."""
+    if frame.size and np.min(frame) >= CLIP_LEVEL:
+        raise InputError(f"{name}: every pixel is clipped in every channel (all white): it records no scene and no "
+                         "streak to work from; take a shorter exposure")
 
 
 def clipped_clusters(clipped: np.ndarray, reach_px: int) -> list[tuple[tuple[slice, slice], np.ndarray]]:

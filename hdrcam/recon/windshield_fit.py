@@ -34,7 +34,7 @@ import torch
 
 from hdrcam.optics.analytic import WINDSHIELD_ROTATION_DEG, two_point_star
 from hdrcam.recon.blob_amplitudes import fit_blob_amplitudes
-from hdrcam.recon.tiling import clipped_clusters, clipped_mask
+from hdrcam.recon.tiling import clipped_clusters, clipped_mask, refuse_all_clipped
 from hdrcam.sensor import fft_convolve, without_fft_round_off
 
 PSF_SIZE_PX = 63  # the streak length the model allows for (the size the windshield network was trained with)
@@ -89,7 +89,9 @@ class _Crop:
 
 
 def subtract_windshield_streaks(frame: np.ndarray) -> tuple[np.ndarray, WindshieldFitReport]:
-    """H x W x 3 frame in [0, 1] -> (the frame with its clipped lights' streaks subtracted, what was fitted)."""
+    """H x W x 3 frame in [0, 1] -> (the frame with its clipped lights' streaks subtracted, what was fitted);
+    InputError for a frame clipped everywhere (hdrcam.recon.tiling.refuse_all_clipped)."""
+    refuse_all_clipped(frame)
     started = time.perf_counter()
     clipped = clipped_mask(frame)
     blob_count, _ = cv2.connectedComponents(clipped.astype(np.uint8), connectivity=8)

@@ -80,3 +80,19 @@ def test_a_folder_given_as_the_scene_is_named_as_a_folder(tmp_path, capsys):
     assert_failed_with_one_line(run(["simulate", scene, "--psf", "dirac", "--out", tmp_path / "frame.exr"], capsys),
                                 1, str(scene), "a folder")
     assert list(tmp_path.iterdir()) == [scene]
+
+
+@pytest.mark.parametrize("command", ["reconstruct", "destreak"])
+def test_an_all_white_frame_among_good_ones_is_refused_before_any_output(command, tmp_path, capsys):
+    """An all-saturated frame is bad input (it records no scene and no streak): one line naming it, exit 1, and
+    no output for any frame of the run - every input is checked before any work."""
+    from hdrcam.io.exr import write_exr
+
+    good, white = tmp_path / "good.exr", tmp_path / "white.exr"
+    frame = np.full((64, 64, 3), 0.2, np.float32)
+    frame[30:34, 30:34] = 1.0
+    write_exr(good, frame, channel_names=("R", "G", "B"))
+    write_exr(white, np.ones((64, 64, 3), np.float32), channel_names=("R", "G", "B"))
+    out = tmp_path / "out"
+    assert_failed_with_one_line(run([command, good, white, "--out", out], capsys), 1, str(white))
+    assert not out.exists()
