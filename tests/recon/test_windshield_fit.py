@@ -60,10 +60,12 @@ def test_directional_background_ignores_a_vertical_line_and_keeps_a_flat_field()
     np.testing.assert_allclose(directional_background(frame), 0.3)
 
 
-def test_an_all_clipped_frame_gives_nothing_to_fit_and_stays_finite():
-    white = np.ones((48, 64, 3), np.float32)
-    cleaned, report = subtract_windshield_streaks(white)
-    assert report.blobs == 1 and np.array_equal(cleaned, white)
+def test_an_all_clipped_frame_is_refused_as_recording_nothing():
+    """Every channel of every pixel at white: no streak and no scene to fit (hdrcam.recon.tiling.refuse_all_clipped)."""
+    from hdrcam.errors import InputError
+
+    with pytest.raises(InputError, match="every pixel is clipped in every channel"):
+        subtract_windshield_streaks(np.ones((48, 64, 3), np.float32))
 
 
 @pytest.mark.parametrize("angle_deg", [1.0, 0.0])
