@@ -19,23 +19,34 @@ from hdrcam.profiles import CameraSpec
 _VARIANCE_FLOOR_E2 = 1e-6  # keeps d sqrt(variance) finite at zero signal and zero read noise
 
 
-def fft_convolve(image: torch.Tensor, psf: torch.Tensor) -> torch.Tensor:
+def fft_convolve(image: torch.Tensor, psf: torch.Tensor, *, spectrum: torch.Tensor | None = None) -> torch.Tensor:
     """Linear (zero-padded, not circular) convolution of (..., C, H, W) with a (C, kh, kw) PSF.
 
     Output has the input's size: out[y, x] = sum_ij image[y - i + kh // 2, x - j + kw // 2] psf[i, j], so the
     PSF's centre is pixel (kh // 2, kw // 2) for odd and even sizes alike. FFT lengths are padded to fast
-    sizes of at least H + kh - 1.
+    sizes of at least H + kh - 1 (:func:`fft_shape`). ``spectrum``: the PSF's :func:`psf_spectrum` at this image's
+    FFT shape, where many images of one size meet one PSF (two transforms a convolution instead of three).
     """
-    height, width = image.shape[-2:]
-    kernel_height, kernel_width = psf.shape[-2:]
     if psf.shape[-3] != image.shape[-3]:
         raise ValueError(f"PSF has {psf.shape[-3]} channels, image has {image.shape[-3]}")
-    fft_shape = (scipy.fft.next_fast_len(height + kernel_height - 1, real=True),
-                 scipy.fft.next_fast_len(width + kernel_width - 1, real=True))
-    spectrum = torch.fft.rfft2(image, s=fft_shape) * torch.fft.rfft2(psf.to(image.dtype), s=fft_shape)
-    full = torch.fft.irfft2(spectrum, s=fft_shape)
-    top, left = kernel_height // 2, kernel_width // 2
-    return full[..., top:top + height, left:left + width]
+    shape = fft_shape(image.shape[-2:], psf.shape[-2:])
+    if spectrum is None:
+        spectrum = psf_spectrum(psf.to(image.dtype), shape)
+    full = torch.fft.irfft2(torch.fft.rfft2(image, s=shape) * spectrum, s=shape)
+    top, left = psf.shape[-2] // 2, psf.shape[-1] // 2
+    return full[..., top:top + image.shape[-2], left:left + image.shape[-1]]
+
+
+def fft_shape(image_shape: tuple[int, int], psf_shape: tuple[int, int]) -> tuple[int, int]:
+    """The FFT lengths of a linear convolution of an image (H, W) with a PSF (kh, kw): fast sizes of at least
+    H + kh - 1 and W + kw - 1."""
+    return tuple(scipy.fft.next_fast_len(int(image) + int(kernel) - 1, real=True)
+                 for image, kernel in zip(image_shape, psf_shape))
+
+
+def psf_spectrum(psf: torch.Tensor, shape: tuple[int, int]) -> torch.Tensor:
+    """The (C, kh, kw) PSF's real 2-D FFT at ``shape`` (:func:`fft_shape`), for :func:`fft_convolve`."""
+    return torch.fft.rfft2(psf, s=shape)
 
 
 FFT_ROUND_OFF = 1e-6  # of a float32 FFT convolution's largest value: below it, round-off (measured 8e-8 of the

@@ -85,7 +85,7 @@ import numpy as np
 import torch
 
 from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
-from hdrcam.sensor import fft_convolve, without_fft_round_off
+from hdrcam.sensor import fft_convolve, fft_shape, psf_spectrum, without_fft_round_off
 
 K_SIGMA = 3.0  # noise allowance of the upper bound, in standard deviations
 TOLERANCE = 0.002  # relative frame units: ADC steps, PSF calibration error
@@ -162,7 +162,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     if not clipped_at.any():
         return output, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool),
                                                      np.zeros(clipped.shape, bool))
-    kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
+    kernel = _Kernel(psf)
     proposed = 0.0
     radius = psf.shape[-1] // 2
     outer_px = evidence_outer_px(psf)
@@ -207,7 +207,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
                                                  confirmed, strong)
 
 
-def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: torch.Tensor
+def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: _Kernel
                     ) -> tuple[np.ndarray, np.ndarray]:
     """One cluster's crop (H x W x 3 each) -> (its excess lowered where its re-imaged light would exceed the
     frame's slack, locally first, then exactly (module docstring), nowhere raised; that excess's spill P * E)."""
@@ -245,7 +245,7 @@ def _edge_deficit_bound(frame: np.ndarray, clipped_channels: np.ndarray, psf: np
     return np.where(band, frame * (1.0 / np.maximum(centre, 1e-3) - 1.0), 0.0).astype(np.float32)
 
 
-def _beyond_reimaged(light: np.ndarray, unclipped: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
+def _beyond_reimaged(light: np.ndarray, unclipped: np.ndarray, kernel: _Kernel) -> np.ndarray:
     """A(v) = v - P * (v on unclipped pixels): what a light map holds beyond what re-imaging the frame's own
     unclipped pixels through the PSF accounts for (the evidence's operator, see _evidence_shares)."""
     return light - _convolve(np.where(unclipped, light, 0.0).astype(np.float32), kernel)
@@ -306,10 +306,9 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
 
 def _headroom(slack: np.ndarray, unclipped: np.ndarray, spill: np.ndarray) -> np.ndarray:
     """min(1, slack / spill) on unclipped pixels that the spill reaches, 1 elsewhere."""
-    headroom = np.ones_like(spill)
     reached = unclipped & (spill > 0)
-    headroom[reached] = np.clip(np.clip(slack[reached], 0.0, None) / spill[reached], 0.0, 1.0)
-    return headroom
+    headroom = np.divide(np.maximum(slack, 0.0), spill, out=np.ones_like(spill), where=reached)
+    return np.clip(headroom, 0.0, 1.0, out=headroom)
 
 
 def _cap_shapes(estimate: np.ndarray, at: tuple[np.ndarray, np.ndarray], clipped_at: np.ndarray,
@@ -331,9 +330,29 @@ def _cap_shapes(estimate: np.ndarray, at: tuple[np.ndarray, np.ndarray], clipped
     estimate[at] = values
 
 
-def _convolve(image: np.ndarray, kernel: torch.Tensor) -> np.ndarray:
+class _Kernel:
+    """The judge's (3, k, k) PSF as a tensor, with its spectra at the FFT shapes of the last cluster's arrays (its
+    crop and its grown region: nine convolutions per cluster share two spectra)."""
+
+    SHAPES_KEPT = 2
+
+    def __init__(self, psf: np.ndarray):
+        self.tensor = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
+        self._spectra: dict[tuple[int, int], torch.Tensor] = {}
+
+    def spectrum(self, image_shape: tuple[int, int]) -> torch.Tensor:
+        shape = fft_shape(image_shape, self.tensor.shape[-2:])
+        if shape not in self._spectra:
+            if len(self._spectra) >= self.SHAPES_KEPT:
+                self._spectra.clear()
+            self._spectra[shape] = psf_spectrum(self.tensor, shape)
+        return self._spectra[shape]
+
+
+def _convolve(image: np.ndarray, kernel: _Kernel) -> np.ndarray:
     """P * image (H x W x 3), without the FFT's round-off (hdrcam.sensor.without_fft_round_off): where a PSF sends
     no light (a Dirac pattern's tails), round-off of 1e-7 of the peak counted as witnesses and was fitted as
     evidence (a proposal of 200 kept at 67-200 for a light twice white)."""
     planes = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1), np.float32))
-    return without_fft_round_off(fft_convolve(planes, kernel)).numpy().transpose(1, 2, 0)
+    return without_fft_round_off(fft_convolve(planes, kernel.tensor, spectrum=kernel.spectrum(image.shape[:2]))
+                                 ).numpy().transpose(1, 2, 0)
