@@ -11,7 +11,7 @@ import numpy as np
 from hdrcam.colorimetry import in_rec709
 from hdrcam.errors import InputError, failure_message
 from hdrcam.io.exr import is_exr_file, read_exr
-from hdrcam.io.png import opencv_image
+from hdrcam.io.opencv_image import opencv_image
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.tiff_image import read_tiff_rgb
 

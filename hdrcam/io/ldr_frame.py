@@ -33,7 +33,8 @@ from hdrcam.errors import InputError
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, lossy_compression, read_exr
 from hdrcam.io.file_magic import starts_with
-from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind, opencv_image
+from hdrcam.io.opencv_image import opencv_image
+from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled

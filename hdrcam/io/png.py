@@ -10,9 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.errors import InputError
 from hdrcam.io.atomic import write_bytes_atomic
-from hdrcam.io.c_stderr import c_stderr_silenced
 from hdrcam.io.icc_profile import tone_curve_encoding
 
 
@@ -32,20 +30,6 @@ def encoded_png(image: np.ndarray, path: Path | str = "image") -> bytes:
     if not ok:
         raise ValueError(f"could not encode {path} as PNG")
     return encoded.tobytes()
-
-
-def opencv_image(path: Path, flags: int) -> np.ndarray | None:
-    """``cv2.imread(path, flags)`` with OpenCV's own lines for a damaged file silenced: None where it reads no
-    image, InputError naming ``path`` where it refuses to decode one (a header declaring more than the 2^30 pixels
-    OpenCV decodes: damaged, or too large an image), which OpenCV raises as its own error, not as None."""
-    try:
-        with c_stderr_silenced():
-            return cv2.imread(str(path), flags)
-    except cv2.error as error:
-        reason = ("its header declares more pixels than OpenCV decodes (2^30): a damaged file or too large an "
-                  "image; use a smaller image" if "CV_IO_MAX_IMAGE_PIXELS" in str(error) else
-                  f"OpenCV cannot decode it ({getattr(error, 'err', None) or 'an error of its own'})")
-        raise InputError(f"{path}: {reason}") from None
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
