@@ -10,12 +10,20 @@ import numpy as np
 
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
+from hdrcam.io.png import png_size_px
+from hdrcam.limits import check_image_size
+
+DECODED_BYTES_PER_PIXEL = 20  # OpenCV's image (up to four 16-bit samples) and the float32 RGB copy made of it
 
 
 def opencv_image(path: Path, flags: int) -> np.ndarray | None:
     """``cv2.imread(path, flags)`` with OpenCV's own lines for a damaged file silenced: None where it reads no
     image, InputError naming ``path`` where it refuses to decode one (a header declaring more than the 2^30 pixels
-    OpenCV decodes: damaged, or too large an image), which OpenCV raises as its own error, not as None."""
+    OpenCV decodes: damaged, or too large an image), which OpenCV raises as its own error, not as None. A PNG is
+    sized from its header first: one declaring more pixels than memory holds is refused before decoding."""
+    size = png_size_px(path)
+    if size is not None:
+        check_image_size(str(path), size[1], size[0], DECODED_BYTES_PER_PIXEL, "give a smaller image")
     try:
         with c_stderr_silenced():
             return cv2.imread(str(path), flags)

@@ -40,6 +40,15 @@ PNG_CICP_LINEAR = 8  # cICP transfer characteristics (ITU-T H.273): 8 is linear
 PNG_GREY_COLOUR_TYPES = {0: "grey", 4: "grey and alpha"}  # IHDR colour types (PNG specification, 11.2.2)
 
 
+def png_size_px(path: Path) -> tuple[int, int] | None:
+    """(width, height) that a PNG's IHDR declares, or None for a file that is not a PNG."""
+    with open(path, "rb") as file:
+        start = file.read(len(PNG_SIGNATURE) + 16)  # the signature, IHDR's length and type, width, height
+    if not start.startswith(PNG_SIGNATURE) or start[12:16] != b"IHDR" or len(start) < len(PNG_SIGNATURE) + 16:
+        return None
+    return struct.unpack(">II", start[16:24])
+
+
 def grey_png_kind(path: Path) -> str | None:
     """"grey" or "grey and alpha" for a PNG whose IHDR declares no colour (OpenCV expands grey and alpha to four
     channels, which read as RGB), else None (a colour PNG, or not a PNG)."""

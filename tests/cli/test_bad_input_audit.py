@@ -96,3 +96,18 @@ def test_an_all_white_frame_among_good_ones_is_refused_before_any_output(command
     out = tmp_path / "out"
     assert_failed_with_one_line(run([command, good, white, "--out", out], capsys), 1, str(white))
     assert not out.exists()
+
+
+def test_a_png_declaring_more_than_memory_holds_is_refused_before_decoding(tmp_path, monkeypatch):
+    """Under OpenCV's own 2^30-pixel limit a PNG's header is all it checks: 30000 x 30000 px (5.4 GB decoded,
+    more with the float copy) went on to decode. Sized from IHDR first, as EXR, TIFF and Radiance files are."""
+    from hdrcam import limits
+    from hdrcam.errors import TooLargeError
+    from hdrcam.io.ldr_frame import read_ldr_frame
+
+    frame = tmp_path / "big.png"
+    _png_declaring(frame, 30_000, 30_000)
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: 1e9)
+    monkeypatch.setattr(cv2, "imread", lambda *arguments: pytest.fail("decoded before its size was checked"))
+    with pytest.raises(TooLargeError, match="30000 x 30000 px"):
+        read_ldr_frame(frame)
