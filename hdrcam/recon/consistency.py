@@ -151,7 +151,48 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     H x W confidence in [0, 1]: the kept share on clipped pixels, 1 elsewhere; the report).
 
     Unclipped pixels are returned as the frame: subtract the highlights' spill afterwards."""
+    return judge_estimates(frame, [estimate], psf, noise=noise)[0]
+
+
+def judge_estimates(frame: np.ndarray, estimates: list[np.ndarray], psf: np.ndarray, *,
+                    noise: NoiseModel = NoiseModel()) -> list[tuple[np.ndarray, np.ndarray, ConsistencyReport]]:
+    """:func:`make_consistent` of each of several estimates of one frame: what the frame alone says of each
+    cluster (its crops, unclipped pixels, noise, bright edge and the light its edge band can hide) is found
+    once for all of them."""
     clipped_channels = frame >= CLIP_LEVEL
+    clipped = clipped_channels.any(axis=-1)
+    kernel = _Kernel(psf)
+    views = [_ClusterView.of(frame, clipped_channels, crop, own, psf, kernel, noise)
+             for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2)] if clipped.any() else []
+    return [_judged(frame, estimate, clipped_channels, views, kernel, evidence_outer_px(psf)) for estimate in estimates]
+
+
+@dataclasses.dataclass
+class _ClusterView:
+    """What the frame alone says of one cluster of clipped pixels, whatever estimate is judged."""
+
+    crop: tuple[slice, slice]  # the cluster grown by the PSF radius
+    own: np.ndarray  # the crop's bool: the cluster's own clipped pixels
+    region: tuple[slice, slice]  # the crop grown by two PSF radii: light from that far can matter
+    inner: tuple[slice, slice]  # where the crop lies in the region
+    unclipped: np.ndarray  # the region's unclipped channels
+    sigma: np.ndarray  # the frame's noise on the crop
+    nuisance: np.ndarray  # A(P * D) on the crop: the light the edge band can hide, beyond re-imaging
+    edge: np.ndarray  # the crop's bool: the highlight with its own bright edge
+
+    @classmethod
+    def of(cls, frame: np.ndarray, clipped_channels: np.ndarray, crop: tuple[slice, slice], own: np.ndarray,
+           psf: np.ndarray, kernel: _Kernel, noise: NoiseModel) -> "_ClusterView":
+        region, inner = _grown(crop, 2 * (psf.shape[-1] // 2), frame.shape[:2])
+        unclipped = ~clipped_channels[region]
+        band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
+        return cls(crop, own, region, inner, unclipped, noise.sigma(frame[crop]),
+                   _beyond_reimaged(band, unclipped, kernel)[inner], _bright_edge(frame[crop], own))
+
+
+def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarray, views: list[_ClusterView],
+            kernel: _Kernel, outer_px: int) -> tuple[np.ndarray, np.ndarray, ConsistencyReport]:
+    """One estimate made consistent with the frame (:func:`make_consistent`), its clusters' ``views`` given."""
     clipped = clipped_channels.any(axis=-1)
     at = np.nonzero(clipped)  # the pixels a judgement can change: work on them, not the frame (24 MP: seconds)
     clipped_at = clipped_channels[at]
@@ -162,29 +203,22 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     if not clipped_at.any():
         return output, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool),
                                                      np.zeros(clipped.shape, bool))
-    kernel = _Kernel(psf)
     proposed = 0.0
-    radius = psf.shape[-1] // 2
-    outer_px = evidence_outer_px(psf)
-    clusters = clipped_clusters(clipped, radius)
     strong = np.zeros(clipped.shape, bool)  # clipped pixels of clusters with strong evidence
     confirmed = np.zeros(clipped.shape, bool)  # ... that also confirms the amount: shape kept
-    for crop, own in clusters:
+    for view in views:
+        crop, own, region, inner, unclipped = view.crop, view.own, view.region, view.inner, view.unclipped
         mine = clipped_channels[crop] & own[..., None]
         excess = np.where(mine, output[crop] - 1.0, 0.0).astype(np.float32)  # floored: no other cluster writes here
-        region, inner = _grown(crop, 2 * radius, frame.shape[:2])  # light from two PSF radii away can matter
-        unclipped = ~clipped_channels[region]
         own_light = np.where(~unclipped, np.clip(estimate[region], 0.0, 1.0), 0.0).astype(np.float32)  # B
         explained = frame[region] - _convolve(own_light, kernel)  # y - P * B
-        slack = explained[inner] + K_SIGMA * noise.sigma(frame[crop]) + TOLERANCE
+        slack = explained[inner] + K_SIGMA * view.sigma + TOLERANCE
         spill = np.zeros_like(explained)
         kept_excess, spill[inner] = _bounded_excess(slack, unclipped[inner], excess, kernel)
-        band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
         shares, significance = _evidence_shares(_beyond_reimaged(explained, unclipped, kernel)[inner],
                                                 _beyond_reimaged(spill, unclipped, kernel)[inner],
-                                                _beyond_reimaged(band, unclipped, kernel)[inner],
-                                                unclipped[inner], own, _bright_edge(frame[crop], own),
-                                                noise.sigma(frame[crop]), outer_px)
+                                                view.nuisance, unclipped[inner], own, view.edge, view.sigma,
+                                                outer_px)
         # one source in three bands: one share keeps its colour - the mean over the channels that hold its excess
         # (a red light's green and blue, with nothing to fit, would lift a red share of 0 to 2/3)
         proposed_channels = kept_excess.sum(axis=(0, 1)) > 0
@@ -203,7 +237,7 @@ def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *,
     share = np.where(excess_proposed > 0, excess_kept / np.maximum(excess_proposed, 1e-12), 1.0).min(axis=-1)
     confidence[at] = np.clip(share, 0.0, 1.0)
     fallen_back = int((confidence[at] < FALLEN_BACK_SHARE).sum())
-    return output, confidence, ConsistencyReport(len(clusters), proposed, kept, int(clipped.sum()), fallen_back,
+    return output, confidence, ConsistencyReport(len(views), proposed, kept, int(clipped.sum()), fallen_back,
                                                  confirmed, strong)
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hdrcam.recon.consistency import FALLEN_BACK_SHARE, ConsistencyReport, NoiseModel, make_consistent
+from hdrcam.recon.consistency import FALLEN_BACK_SHARE, ConsistencyReport, NoiseModel, judge_estimates
 from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
 
 
@@ -30,7 +30,7 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ConsistencyReport]:
     """H x W x 3 frame in [0, 1], two networks' H x W x 3 estimates (relative radiance), the (3, k, k) PSF ->
     (the proposal taken per pixel: the minimum, or the estimate of the network the streaks bear out; the judged
-    estimate, as :func:`make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
+    estimate, as :func:`hdrcam.recon.consistency.make_consistent` returns it; H x W confidence in [0, 1]; the report of what was kept).
 
     Each cluster (hdrcam.recon.tiling.clipped_clusters) is taken whole from one judgement, so the judge's upper
     bound on its excess holds for it as the judge left it: strong streak evidence for one network's proposal,
@@ -38,7 +38,7 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
     counts the proposed and kept excess of the pixels' chosen sources, and its ``confirmed`` and
     ``strong_evidence`` masks are, per pixel, those of the judgement the pixel was taken from."""
     proposals = [np.minimum(first, second), first, second]  # indices 0, 1, 2 of ``source`` below
-    judgements = [make_consistent(frame, estimate, psf, noise=noise) for estimate in proposals]
+    judgements = judge_estimates(frame, proposals, psf, noise=noise)  # the frame's side of the judge found once
     clipped_channels = frame >= CLIP_LEVEL
     clipped = clipped_channels.any(axis=-1)
     source = np.zeros(frame.shape[:2], np.uint8)  # per pixel: 0 the minimum's judgement, 1 first's, 2 second's

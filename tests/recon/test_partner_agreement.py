@@ -296,13 +296,17 @@ def test_the_report_masks_are_those_of_the_judgement_each_pixel_was_taken_from(p
     first = np.where(frame >= CLIP_LEVEL, 2.0, frame).astype(np.float32)
     second = np.where(frame >= CLIP_LEVEL, 5.0, frame).astype(np.float32)
 
-    def judged_as_proposed(frame_, estimate, psf_, *, noise):
-        strong = clipped if estimate is first or estimate is second else np.zeros_like(clipped)
-        confirmed = clipped if estimate is first else np.zeros_like(clipped)
-        confidence = np.ones(clipped.shape, np.float32)
-        return estimate, confidence, ConsistencyReport(1, 0.0, 0.0, int(clipped.sum()), 0, confirmed, strong)
+    def judged_as_proposed(frame_, estimates, psf_, *, noise):
+        judgements = []
+        for estimate in estimates:
+            strong = clipped if estimate is first or estimate is second else np.zeros_like(clipped)
+            confirmed = clipped if estimate is first else np.zeros_like(clipped)
+            confidence = np.ones(clipped.shape, np.float32)
+            judgements.append((estimate, confidence,
+                               ConsistencyReport(1, 0.0, 0.0, int(clipped.sum()), 0, confirmed, strong)))
+        return judgements
 
-    monkeypatch.setattr(network_agreement, "make_consistent", judged_as_proposed)
+    monkeypatch.setattr(network_agreement, "judge_estimates", judged_as_proposed)
     _, judged, _, report = network_agreement.judge_pair(frame, first, second, psf, noise=NoiseModel())
     assert np.array_equal(judged[clipped], second[clipped])
     assert report.strong_evidence[clipped].all() and not report.confirmed.any()
