@@ -204,3 +204,42 @@ def test_a_fit_that_leaves_residuals_well_above_the_noise_is_warned_about_or_ref
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_fit(fit, 0)
+
+
+def _moved_bracket(folder, shift_px: float) -> None:
+    """Three exposures of a pinhole target (40.6 px pitch) that moves ``shift_px`` to the right before each
+    longer exposure, as a camera on a bench that creeps, written as a folder of DNGs."""
+    import dataclasses
+
+    from hdrcam.capture.scene import load_scene
+    from hdrcam.capture.simulated import SimulatedCamera, simulation_psf
+    from hdrcam.profiles import load_profile
+
+    profile = load_profile("simulated")
+    psf = simulation_psf(profile, "doe")
+    scene = load_scene("pinholes::40.6", 192, 256, 0)
+    for index, exposure_s in enumerate((1 / 4000, 1 / 500, 1 / 60)):
+        points = tuple(dataclasses.replace(p, x_px=p.x_px + index * shift_px) for p in scene.points)
+        camera = SimulatedCamera(profile, dataclasses.replace(scene, points=points), psf, seed=index)
+        camera.set_exposure(exposure_s)
+        camera.capture(folder, f"frame-{index}")
+
+
+def test_frames_that_moved_between_exposures_are_warned_about(tmp_path):
+    """Frames shifted 0.1 px per exposure gave a PSF 11.4 / 6.2 / 10.2 % off in L1 (2.4-3.9 times the unmoved
+    bracket's) at reduced chi2 1.13, without any warning (640 x 480 px, 63 px PSF)."""
+    from hdrcam.calibrate.psf_calibration import calibrate_psf
+    from hdrcam.profiles import load_profile
+
+    camera = load_profile("simulated").camera
+    for shift_px, moved in ((0.0, False), (0.15, True)):
+        folder = tmp_path / f"moved-{shift_px}"
+        _moved_bracket(folder, shift_px)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            calibrate_psf([folder], camera, darks=None, size_px=15)
+        motion = [str(w.message) for w in caught if "point sources moved between" in str(w.message)]
+        assert bool(motion) == moved, [str(w.message) for w in caught]
+        if moved:
+            assert len(motion) == 1 and "\n" not in motion[0] and "frame-0.dng and frame-2.dng" in motion[0]
+
