@@ -89,17 +89,21 @@ def peak_significance(window: SourceWindow) -> float:
     return float((window.rate[trusted] / noise).max(initial=0.0))
 
 
-def check_enough_samples(windows: list[SourceWindow], size_px: int) -> None:
+def check_enough_samples(windows: list[SourceWindow], size_px: int, left_out: list[str] | None = None) -> None:
     """Refuse sources too few to determine the PSF: each channel has size_px^2 unknowns, and a source gives
     one equation per trusted sample of that channel's CFA sites in its window (a quarter of them for red
     and blue). Fewer equations than unknowns leave the PSF to the smoothness prior - one source gives the
     red and blue PSFs off by ~100 % L1 - so at least as many samples as unknowns are asked for per channel
-    (a necessary condition; warn_negative_energy flags sources that are many but too faint)."""
+    (a necessary condition; warn_negative_energy flags sources that are many but too faint). ``left_out``: why
+    the other sources found were not used ("N clipped in every frame ..."), named in the refusal: pinholes too
+    bright for the shortest exposure left one of 48 usable, and the refusal asked for more pinholes than the 48
+    the target had."""
     for channel, name in enumerate(CHANNEL_NAMES):
         samples = sum(int(((w.channel == channel) & (w.weight > 0)).sum()) for w in windows)
         if samples < size_px * size_px:
+            others = f"; left out: {', '.join(left_out)}" if left_out else ""
             raise InputError(f"too few point sources for a {size_px} px PSF: {len(windows)} give {samples} "
-                             f"{name} samples for its {size_px * size_px} unknowns; use more sources at "
+                             f"{name} samples for its {size_px * size_px} unknowns{others}; use more sources at "
                              "different positions (a pinhole array: capture bracket --scene pinholes)")
 
 
@@ -329,19 +333,19 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     crowded_sources = crowded(list(found), peaks, size_px // 2, half + size_px // 2 + 1)
     windows = [window for position, window in found.items() if position not in crowded_sources]
     rejected = edge + clipped + faint + len(crowded_sources)
+    reasons = [f"{count} {reason}" for count, reason in (
+        (len(crowded_sources), _crowding_advice(crowded_sources, size_px) if crowded_sources else ""),
+        (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
+        (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
+    spots = 0 if clipped else cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
+    if spots:  # sources clipped whole are masked out before detection: say so
+        reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
     if not windows:
-        reasons = [f"{count} {reason}" for count, reason in (
-            (len(crowded_sources), _crowding_advice(crowded_sources, size_px) if crowded_sources else ""),
-            (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
-            (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
-        spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
-        if spots and not clipped:  # sources clipped whole are masked out before detection: say so
-            reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
-            if rejected:  # "N found - ..." lists them (with none found: "no point source found ...")
-                rejected += spots
+        if spots and rejected:  # "N found - ..." lists them (with none found: "no point source found ...")
+            rejected += spots
         raise InputError(f"no usable point source: {rejected} found - " + ", ".join(reasons) if rejected else
                          "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
-    check_enough_samples(windows, size_px)
+    check_enough_samples(windows, size_px, reasons)
     check_phase_coverage(windows, np.array([[w.y_px, w.x_px] for w in windows]), GUESS_COVERAGE_LIMIT)
     fit = fit_effective_psf(windows, size_px)
     check_fit(fit, len(crowded_sources))  # a failed fit is refused in one line, before any other warning

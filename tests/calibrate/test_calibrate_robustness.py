@@ -243,3 +243,15 @@ def test_frames_that_moved_between_exposures_are_warned_about(tmp_path):
         if moved:
             assert len(motion) == 1 and "\n" not in motion[0] and "frame-0.dng and frame-2.dng" in motion[0]
 
+
+def test_too_few_sources_left_after_clipping_name_the_clipped_ones(tmp_path, capsys, recwarn):
+    """Pinholes too bright for the shortest exposure: 47 of 48 clipped whole, and the refusal asked for more
+    pinholes ("too few point sources ... use more sources") without naming the clipping that left them out."""
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "pinholes:500",
+                 "--stops", "3", "--seed", "0", "--size", "640x480", "--out", str(tmp_path / "bracket")]) == 0
+    recwarn.clear()
+    capsys.readouterr()
+    code = main(["calibrate", "psf", str(tmp_path / "bracket"), "--size", "63", "--profile", "simulated",
+                 "--out", str(tmp_path / "r")])
+    _assert_refused(code, capsys, tmp_path / "r", "spots clipped in every frame, not measurable (add a shorter "
+                    "exposure)", recwarn)
