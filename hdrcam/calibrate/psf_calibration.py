@@ -313,7 +313,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     meta = frames[0].metadata
     height, width = merge.rate.shape
     noise = merge.noise
-    hot = hot_pixel_map(dark_frames, noise.read_noise_dn) if dark_frames else np.zeros((height, width), bool)
+    hot = hot_pixel_map(dark_frames, noise.read_noise_dn, noise.gain_dn_per_e) if dark_frames else \
+        np.zeros((height, width), bool)
     untrusted = dilated(merge.clipped_everywhere) | hot
     weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))
     channels = channel_map(meta.cfa_pattern, height, width)
