@@ -312,3 +312,34 @@ def test_a_lit_room_is_not_taken_for_frames_that_moved(tmp_path):
         warnings.simplefilter("always")
         calibrate_psf([tmp_path / "bracket"], profile.camera, darks=None, size_px=15)
     assert not [str(w.message) for w in caught if "point sources moved" in str(w.message)]
+
+
+def test_pinholes_in_a_lit_room_are_found_above_its_light(tmp_path):
+    """Sources were local maxima above a fraction of the brightest measured from zero: a lit room's light (0.7
+    full wells per reference exposure) was itself above it, its noise peaks were taken for pinholes 32 px apart,
+    and every pinhole was refused as crowded. Above the room's light, the same pinholes are found as in the dark."""
+    import dataclasses
+
+    from hdrcam.calibrate.point_sources import detect_sources
+    from hdrcam.capture.scene import load_scene
+    from hdrcam.capture.simulated import SimulatedCamera, simulation_psf
+    from hdrcam.hdr.bracket_input import read_bracket
+    from hdrcam.hdr.merge import merge_bayer
+    from hdrcam.profiles import load_profile
+
+    profile = load_profile("simulated")
+    psf = simulation_psf(profile, "doe")
+    y, x = np.mgrid[:192, :256].astype(np.float32)
+    light = 0.7 * (1 + (x - 128) / 256 + (y - 96) / 384)
+    dark_room = load_scene("pinholes::40.6", 192, 256, 0)
+    found = []
+    for name, scene in (("dark", dark_room),
+                        ("lit", dataclasses.replace(dark_room, radiance=np.repeat(light[..., None], 3, axis=2)))):
+        camera = SimulatedCamera(profile, scene, psf, seed=0)
+        for index, exposure_s in enumerate((1 / 4000, 1 / 500)):
+            camera.set_exposure(exposure_s)
+            camera.capture(tmp_path / name, f"frame-{index}")
+        merge = merge_bayer(read_bracket([tmp_path / name]), profile.camera, scene_fills_frame=False)
+        found.append(sorted(detect_sources(merge.rate, ~merge.clipped_everywhere, 3)))
+    assert len(found[0]) == len(dark_room.points)
+    assert found[1] == found[0]
