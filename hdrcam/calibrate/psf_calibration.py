@@ -298,8 +298,9 @@ def warn_frame_motion(windows: list[SourceWindow], fit: EffectivePsf, frames: li
     if worst is not None:
         _, first, second, shift, turn = worst
         names = [frames[k].metadata.path.name for k in (first, second)]
+        turned = f", a turn moving them {turn:.2f} px rms" if turn >= FRAME_TURN_LIMIT_PX / 2 else ""
         warnings.warn(f"the point sources moved between {names[0]} and {names[1]} (a common shift of at least "
-                      f"{shift:.3f} px, a turn moving them {turn:.2f} px rms): the camera or target moved between "
+                      f"{shift:.3f} px{turned}): the camera or target moved between "
                       "exposures, or the frames come from different captures, which puts the PSF several % off - "
                       "fix the camera and the target and shoot the bracket again", stacklevel=2)
 
