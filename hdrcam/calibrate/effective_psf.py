@@ -341,3 +341,16 @@ def _leave_out_outliers(sources: list[_Source], scaled: np.ndarray) -> int:
     for source, mask in zip(sources, outlying):
         source.window.weight[mask] = 0.0
     return count
+
+
+def fitted_models(windows: list[SourceWindow], fit: EffectivePsf) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per window, the fit's prediction of each sample (W x W, the sample's own channel, merge units) and its
+    derivatives along the source's y and x position (px): flux x the PSF placed at the fitted position."""
+    models = []
+    for window, position, flux in zip(windows, fit.positions_px, fit.flux):
+        source = _Source(window)
+        source.y_px, source.x_px = float(position[0]), float(position[1])
+        channel = window.channel.astype(np.int64)[None]
+        models.append(tuple(np.take_along_axis(array, channel, 0)[0] * flux[window.channel]
+                            for array in source.model(fit.psf)))
+    return models

@@ -21,13 +21,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf, phase_coverage
+from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf, fitted_models, phase_coverage
 from hdrcam.calibrate.hot_pixels import hot_pixel_map
 from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window, detect_sources
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import matching_darks
-from hdrcam.hdr.merge import BayerMerge, dilated, merge_bayer
+from hdrcam.hdr.merge import BayerMerge, black_subtracted, dilated, merge_bayer
 from hdrcam.hdr.neighbour_mean import neighbour_mean
 from hdrcam.io.raw import RawFrame
 from hdrcam.profiles import CameraSpec
@@ -89,17 +89,21 @@ def peak_significance(window: SourceWindow) -> float:
     return float((window.rate[trusted] / noise).max(initial=0.0))
 
 
-def check_enough_samples(windows: list[SourceWindow], size_px: int) -> None:
+def check_enough_samples(windows: list[SourceWindow], size_px: int, left_out: list[str] | None = None) -> None:
     """Refuse sources too few to determine the PSF: each channel has size_px^2 unknowns, and a source gives
     one equation per trusted sample of that channel's CFA sites in its window (a quarter of them for red
     and blue). Fewer equations than unknowns leave the PSF to the smoothness prior - one source gives the
     red and blue PSFs off by ~100 % L1 - so at least as many samples as unknowns are asked for per channel
-    (a necessary condition; warn_negative_energy flags sources that are many but too faint)."""
+    (a necessary condition; warn_negative_energy flags sources that are many but too faint). ``left_out``: why
+    the other sources found were not used ("N clipped in every frame ..."), named in the refusal: pinholes too
+    bright for the shortest exposure left one of 48 usable, and the refusal asked for more pinholes than the 48
+    the target had."""
     for channel, name in enumerate(CHANNEL_NAMES):
         samples = sum(int(((w.channel == channel) & (w.weight > 0)).sum()) for w in windows)
         if samples < size_px * size_px:
+            others = f"; left out: {', '.join(left_out)}" if left_out else ""
             raise InputError(f"too few point sources for a {size_px} px PSF: {len(windows)} give {samples} "
-                             f"{name} samples for its {size_px * size_px} unknowns; use more sources at "
+                             f"{name} samples for its {size_px * size_px} unknowns{others}; use more sources at "
                              "different positions (a pinhole array: capture bracket --scene pinholes)")
 
 
@@ -200,6 +204,107 @@ def check_fit(fit: EffectivePsf, crowded_count: int) -> None:
                       "the bracket", stacklevel=2)
 
 
+FRAME_SHIFT_LIMIT_PX = 0.02  # of the common shift of the sources between two frames (see warn_frame_motion)
+FRAME_TURN_LIMIT_PX = 0.2  # rms over the sources of the displacement a turn between two frames gives them
+MOTION_SIGMAS = 5.0  # a motion must also stand this many of its own standard errors out of the noise
+FRAME_SOURCE_SNR = 20.0  # least flux significance of a source in one frame for its position there to count
+
+
+def frame_positions(windows: list[SourceWindow], fit: EffectivePsf, frames: list[RawFrame], merge: BayerMerge
+                    ) -> np.ndarray:
+    """n sources x f frames x 3: each source's offset (dy, dx, px) from its fitted position in each frame alone,
+    and the offset's standard error (NaN where the frame has too little unclipped signal of it): a weighted linear
+    fit of the frame's black-subtracted samples that the merge used to the fitted model, its position derivatives
+    and a background plane per channel (a level alone let a lit room's slope, 0.4 full wells across 640 px, read
+    as a 0.13 px shift). The fitted PSF has partly absorbed a motion, so the offsets between frames read
+    a quarter to a half of the true motion (0.1 and 0.2 px shifts: 0.03-0.05 px)."""
+    positions = np.full((len(windows), len(frames), 3), np.nan)
+    models = fitted_models(windows, fit)
+    signals = [black_subtracted(frame) for frame in frames]
+    read_variance, gain = merge.noise.read_noise_dn ** 2, merge.noise.gain_dn_per_e
+    for index, (window, (model, d_y, d_x)) in enumerate(zip(windows, models)):
+        rows = slice(window.top, window.top + model.shape[0])
+        columns = slice(window.left, window.left + model.shape[1])
+        y, x = np.mgrid[:model.shape[0], :model.shape[1]] - model.shape[0] // 2
+        planes = [(window.channel == c) * term for c in range(3) for term in (1, y, x)]
+        terms = np.stack([model, d_y, d_x] + planes, axis=-1).astype(np.float64)
+        for k, signal in enumerate(signals):
+            used = ((merge.usable_frames[rows, columns] >> k) & 1 == 1) & (window.weight > 0)
+            if used.sum() < 2 * terms.shape[-1]:
+                continue
+            data = signal[rows, columns][used].astype(np.float64)
+            root_weight = 1.0 / np.sqrt(read_variance + gain * np.maximum(data, 0.0))
+            design = terms[used] * root_weight[:, None]
+            design = design[:, np.abs(design).max(axis=0) > 0]  # a channel with no sample in this frame
+            solution, *_ = np.linalg.lstsq(design, data * root_weight, rcond=None)
+            covariance = np.linalg.pinv(design.T @ design)
+            scale = solution[0]
+            if not scale > FRAME_SOURCE_SNR * np.sqrt(covariance[0, 0]):
+                continue
+            positions[index, k] = (solution[1] / scale, solution[2] / scale,
+                                   np.sqrt(covariance[1, 1] + covariance[2, 2]) / scale)
+    return positions
+
+
+def frame_motion(positions: np.ndarray, fit: EffectivePsf, shape: tuple[int, int], first: int, second: int
+                 ) -> tuple[float, float, float, float] | None:
+    """The motion of the sources from frame ``first`` to ``second``: (common shift px, its significance in
+    standard errors, rms displacement px of the turn about the frame's centre, its significance), fitted by least
+    squares to the sources measured in both (:func:`frame_positions`); None with fewer than 3 such sources."""
+    both = np.isfinite(positions[:, first, 0]) & np.isfinite(positions[:, second, 0])
+    if both.sum() < 3:
+        return None
+    moved = (positions[both, second, :2] - positions[both, first, :2]).ravel()
+    y, x = (fit.positions_px[both] - np.array(shape) / 2).T
+    design = np.zeros((moved.size, 3))
+    design[0::2, 0], design[1::2, 1] = 1.0, 1.0
+    design[0::2, 2], design[1::2, 2] = x, -y  # a small turn by theta moves (y, x) by theta (x, -y)
+    solution, *_ = np.linalg.lstsq(design, moved, rcond=None)
+    residual = moved - design @ solution
+    error = np.hypot(positions[both, first, 2], positions[both, second, 2]) / np.sqrt(2)
+    variance = max(float(residual @ residual) / max(moved.size - 3, 1), float(np.mean(error ** 2)))
+    covariance = np.linalg.pinv(design.T @ design) * variance
+    shift = solution[:2]
+    shift_sigmas = float(np.sqrt(shift @ np.linalg.pinv(covariance[:2, :2]) @ shift))
+    radius = float(np.sqrt(np.mean(x ** 2 + y ** 2)))
+    turn_sigmas = abs(float(solution[2])) / max(float(np.sqrt(covariance[2, 2])), 1e-30)
+    return float(np.hypot(*shift)), shift_sigmas, abs(float(solution[2])) * radius, turn_sigmas
+
+
+def warn_frame_motion(windows: list[SourceWindow], fit: EffectivePsf, frames: list[RawFrame], merge: BayerMerge
+                      ) -> None:
+    """Warn when the sources moved between two frames of the bracket (the camera or the target moved between
+    exposures, or the frames come from two captures). The merge takes each pinhole's core from a short frame and
+    its wings from the long ones, so a motion between them puts the wings off the core, and the fit writes that
+    into the PSF at a reduced chi2 that looks fine: on 640 x 480 px pinhole brackets (63 px PSF, 35 sources,
+    L1 R/G/B 4.1 / 1.7 / 2.6 % unmoved), shifts of 0.05 and 0.1 px per frame gave 7.1 / 3.8 / 5.4 % (chi2 0.99)
+    and 11.4 / 6.2 / 10.2 % (chi2 1.13), a turn of 0.2 degrees 12.6 / 9.4 / 13.9 % (chi2 1.85), none warned of.
+    :func:`frame_positions` read those as common shifts of 0.025-0.05 px, and rms turns of 0.4 px (0.2 degrees),
+    against at most 0.003 px and 0.01 px unmoved; hence FRAME_SHIFT_LIMIT_PX and FRAME_TURN_LIMIT_PX. A shift of
+    0.03 px per frame (L1 5.2 / 2.5 / 3.4 %) reads 0.016 px and passes; a turn of 0.05 degrees (rms 0.13 px, L1 4.7
+    / 1.9 / 2.9 %) is warned of for the common shift of 0.022 px it leaves - a real motion, if a harmless one."""
+    positions = frame_positions(windows, fit, frames, merge)
+    worst = None
+    for first in range(len(frames)):
+        for second in range(first + 1, len(frames)):
+            motion = frame_motion(positions, fit, merge.rate.shape, first, second)
+            if motion is None:
+                continue
+            shift, shift_sigmas, turn, turn_sigmas = motion
+            excess = max(shift / FRAME_SHIFT_LIMIT_PX if shift_sigmas > MOTION_SIGMAS else 0.0,
+                         turn / FRAME_TURN_LIMIT_PX if turn_sigmas > MOTION_SIGMAS else 0.0)
+            if excess > 1 and (worst is None or excess > worst[0]):
+                worst = (excess, first, second, shift, turn)
+    if worst is not None:
+        _, first, second, shift, turn = worst
+        names = [frames[k].metadata.path.name for k in (first, second)]
+        turned = f", a turn moving them {turn:.2f} px rms" if turn >= FRAME_TURN_LIMIT_PX / 2 else ""
+        warnings.warn(f"the point sources moved between {names[0]} and {names[1]} (a common shift of at least "
+                      f"{shift:.3f} px{turned}): the camera or target moved between "
+                      "exposures, or the frames come from different captures, which puts the PSF several % off - "
+                      "fix the camera and the target and shoot the bracket again", stacklevel=2)
+
+
 def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
                   energy_fraction: float | None = None) -> PsfCalibration:
     if isinstance(size_px, bool) or not isinstance(size_px, int) or size_px < 3 or size_px % 2 == 0:
@@ -213,7 +318,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     meta = frames[0].metadata
     height, width = merge.rate.shape
     noise = merge.noise
-    hot = hot_pixel_map(dark_frames, noise.read_noise_dn) if dark_frames else np.zeros((height, width), bool)
+    hot = hot_pixel_map(dark_frames, noise.read_noise_dn, noise.gain_dn_per_e) if dark_frames else \
+        np.zeros((height, width), bool)
     untrusted = dilated(merge.clipped_everywhere) | hot
     weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))
     channels = channel_map(meta.cfa_pattern, height, width)
@@ -233,23 +339,24 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     crowded_sources = crowded(list(found), peaks, size_px // 2, half + size_px // 2 + 1)
     windows = [window for position, window in found.items() if position not in crowded_sources]
     rejected = edge + clipped + faint + len(crowded_sources)
+    reasons = [f"{count} {reason}" for count, reason in (
+        (len(crowded_sources), _crowding_advice(crowded_sources, size_px) if crowded_sources else ""),
+        (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
+        (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
+    spots = 0 if clipped else cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
+    if spots:  # sources clipped whole are masked out before detection: say so
+        reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
     if not windows:
-        reasons = [f"{count} {reason}" for count, reason in (
-            (len(crowded_sources), _crowding_advice(crowded_sources, size_px) if crowded_sources else ""),
-            (clipped, "clipped in every frame (add a shorter exposure)"), (edge, "too close to the frame's edge"),
-            (faint, f"less than {SOURCE_SIGMAS:g} sigma above the background (a flat or empty scene?)")) if count]
-        spots = cv2.connectedComponents(merge.clipped_everywhere.astype(np.uint8))[0] - 1
-        if spots and not clipped:  # sources clipped whole are masked out before detection: say so
-            reasons.insert(0, f"{spots} spots clipped in every frame, not measurable (add a shorter exposure)")
-            if rejected:  # "N found - ..." lists them (with none found: "no point source found ...")
-                rejected += spots
+        if spots and rejected:  # "N found - ..." lists them (with none found: "no point source found ...")
+            rejected += spots
         raise InputError(f"no usable point source: {rejected} found - " + ", ".join(reasons) if rejected else
                          "no point source found in the bracket" + (f": {reasons[0]}" if reasons else ""))
-    check_enough_samples(windows, size_px)
+    check_enough_samples(windows, size_px, reasons)
     check_phase_coverage(windows, np.array([[w.y_px, w.x_px] for w in windows]), GUESS_COVERAGE_LIMIT)
     fit = fit_effective_psf(windows, size_px)
     check_fit(fit, len(crowded_sources))  # a failed fit is refused in one line, before any other warning
     check_phase_coverage(windows, fit.positions_px, PHASE_COVERAGE_LIMIT)
+    warn_frame_motion(windows, fit, frames, merge)  # before warn_negative_energy: the cause before the symptom
     warn_negative_energy(fit)
     crop = size_px if energy_fraction is None else crop_size_for_energy(fit.psf, energy_fraction)
     start = size_px // 2 - crop // 2
