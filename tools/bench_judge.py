@@ -29,13 +29,24 @@ from hdrcam.recon.network_agreement import judge_pair  # noqa: E402
 from hdrcam.train.checkpoint import load_model  # noqa: E402
 
 
+def frame_size(text: str) -> tuple[int, int]:
+    """HEIGHTxWIDTH (px) -> (height, width); argparse's usage error otherwise."""
+    try:
+        height, width = (int(side) for side in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: HEIGHTxWIDTH in pixels, e.g. 4000x6000") from None
+    if min(height, width) < 64:
+        raise argparse.ArgumentTypeError(f"{text!r}: at least 64 px a side")
+    return height, width
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", default="4000x6000", help="HEIGHTxWIDTH of the frame, px")
+    parser.add_argument("--size", type=frame_size, default=(4000, 6000), help="HEIGHTxWIDTH of the frame, px")
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     arguments = parser.parse_args()
-    height, width = (int(side) for side in arguments.size.lower().split("x"))
+    height, width = arguments.size
     model = load_model()
     psf = np.asarray(model.psf, np.float32)
     frame, _ = test_frame(height, width, arguments.seed, psf, load_profile(model.profile), "clustered")

@@ -26,7 +26,7 @@ def hot_pixel_map(darks: list[RawFrame], read_noise_dn: float, gain_dn_per_e: fl
     """
     hot = np.zeros(darks[0].bayer_dn.shape, bool)
     for dark in darks:
-        signal = black_subtracted(dark).astype(np.float32)
+        signal = black_subtracted(dark)
         for row in (0, 1):
             for column in (0, 1):
                 plane = np.ascontiguousarray(signal[row::2, column::2])

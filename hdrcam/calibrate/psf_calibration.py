@@ -220,7 +220,6 @@ def frame_positions(windows: list[SourceWindow], fit: EffectivePsf, frames: list
     a quarter to a half of the true motion (0.1 and 0.2 px shifts: 0.03-0.05 px)."""
     positions = np.full((len(windows), len(frames), 3), np.nan)
     models = fitted_models(windows, fit)
-    signals = [black_subtracted(frame) for frame in frames]
     read_variance, gain = merge.noise.read_noise_dn ** 2, merge.noise.gain_dn_per_e
     for index, (window, (model, d_y, d_x)) in enumerate(zip(windows, models)):
         rows = slice(window.top, window.top + model.shape[0])
@@ -228,11 +227,11 @@ def frame_positions(windows: list[SourceWindow], fit: EffectivePsf, frames: list
         y, x = np.mgrid[:model.shape[0], :model.shape[1]] - model.shape[0] // 2
         planes = [(window.channel == c) * term for c in range(3) for term in (1, y, x)]
         terms = np.stack([model, d_y, d_x] + planes, axis=-1).astype(np.float64)
-        for k, signal in enumerate(signals):
+        for k, frame in enumerate(frames):
             used = ((merge.usable_frames[rows, columns] >> k) & 1 == 1) & (window.weight > 0)
             if used.sum() < 2 * terms.shape[-1]:
                 continue
-            data = signal[rows, columns][used].astype(np.float64)
+            data = black_subtracted(frame, (rows, columns))[used].astype(np.float64)  # the window alone
             root_weight = 1.0 / np.sqrt(read_variance + gain * np.maximum(data, 0.0))
             design = terms[used] * root_weight[:, None]
             design = design[:, np.abs(design).max(axis=0) > 0]  # a channel with no sample in this frame

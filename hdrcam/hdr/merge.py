@@ -103,11 +103,15 @@ class BayerMerge:
             return np.where(information > 0, self.to_relative ** 2 / information, np.inf)
 
 
-def black_subtracted(frame: RawFrame) -> np.ndarray:
-    """The whole frame's signal in DN above its black level (float32; black per CFA position). The merge
-    itself subtracts strip by strip, or a dark frame instead (:class:`_BracketStrips`)."""
-    height, width = frame.bayer_dn.shape
-    return np.subtract(frame.bayer_dn, tiled(frame.metadata.black_level_tile(), height, width), dtype=np.float32)
+def black_subtracted(frame: RawFrame, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
+    """The frame's signal in DN above its black level (float32; black per CFA position), on ``window`` (rows,
+    columns; default: the whole frame). The merge itself subtracts strip by strip, or a dark frame instead
+    (:class:`_BracketStrips`)."""
+    rows, columns = window
+    data = frame.bayer_dn[rows, columns]
+    phase = ((rows.start or 0) % 2, (columns.start or 0) % 2)  # the window's first sample's CFA position
+    black = np.roll(frame.metadata.black_level_tile(), (-phase[0], -phase[1]), axis=(0, 1))
+    return np.subtract(data, tiled(black, *data.shape), dtype=np.float32)
 
 
 def clip_level_tile_dn(frames: list[RawFrame]) -> np.ndarray:

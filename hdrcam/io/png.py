@@ -42,22 +42,25 @@ PNG_GREY_COLOUR_TYPES = {0: "grey", 4: "grey and alpha"}  # IHDR colour types (P
 
 def png_size_px(path: Path) -> tuple[int, int] | None:
     """(width, height) that a PNG's IHDR declares, or None for a file that is not a PNG."""
-    with open(path, "rb") as file:
-        start = file.read(len(PNG_SIGNATURE) + 16)  # the signature, IHDR's length and type, width, height
-    if not start.startswith(PNG_SIGNATURE) or start[12:16] != b"IHDR" or len(start) < len(PNG_SIGNATURE) + 16:
-        return None
-    return struct.unpack(">II", start[16:24])
+    header = _ihdr(path)
+    return None if header is None else header[:2]
 
 
 def grey_png_kind(path: Path) -> str | None:
     """"grey" or "grey and alpha" for a PNG whose IHDR declares no colour (OpenCV expands grey and alpha to four
     channels, which read as RGB), else None (a colour PNG, or not a PNG)."""
+    header = _ihdr(path)
+    return None if header is None else PNG_GREY_COLOUR_TYPES.get(header[2])
+
+
+def _ihdr(path: Path) -> tuple[int, int, int] | None:
+    """(width, height, colour type) from a PNG's IHDR chunk, or None for a file that does not start as a PNG."""
     with open(path, "rb") as file:
-        start = file.read(len(PNG_SIGNATURE) + 17)  # the signature, IHDR's length and type, width, height, depth
-        colour_type = file.read(1)
-    if not start.startswith(PNG_SIGNATURE) or start[12:16] != b"IHDR" or len(colour_type) != 1:
-        return None
-    return PNG_GREY_COLOUR_TYPES.get(colour_type[0])
+        start = file.read(len(PNG_SIGNATURE) + 18)  # the signature, IHDR's length and type, width, height, depth,
+    if not start.startswith(PNG_SIGNATURE) or start[12:16] != b"IHDR" or len(start) < len(PNG_SIGNATURE) + 18:
+        return None  # ... and colour type
+    width, height = struct.unpack(">II", start[16:24])
+    return width, height, start[25]
 
 
 def declared_nonlinear_encoding(path: Path) -> str | None:
