@@ -8,9 +8,9 @@
 #             on the one GPU, for as many steps as fit: `fit shipped SECONDS` -> runs/shipped-gpu/main, .../partner
 #
 # Here, once (the photographs and the OpenEXR wheel the device lacks; both ignored by git):
-#   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs, dealt by size),
+#   bash tools/gpu/train.sh prepare   # -> gpu-data/a, b, c (the 35 training photographs gzipped, dealt by size),
 #                                     #    gpu-data/d (../shared/data/hdr), .whl/openexr-*.whl; prints the carries
-# A call carries at most 64 MiB together with the working tree (40.0 MiB), and what a call carried is gone at
+# A call carries at most 64 MiB together with the working tree (41 MiB), and what a call carried is gone at
 # the next call (seen 2026-11-26), while /tmp stays as long as the machine is warm: every command here first
 # keeps the call's carried parts in /tmp/hdrcam-carry and puts back those of earlier calls. So three calls,
 # each sent within 30 s of the last one's return:
@@ -34,7 +34,7 @@ tree_mib() {  # what the tracked working tree weighs, MiB (it travels with every
     git ls-files -z | xargs -0 du -cb 2>/dev/null | tail -1 | awk '{print $1 / 1048576}'
 }
 CARRY_MIB=$(awk -v tree="$(tree_mib)" 'BEGIN {print int(64 - tree - 1)}')  # each call's carry: 64 MiB less
-# the working tree (40.0 MiB on 2026-11-27) and a margin of 1 MiB
+# the working tree (41 MiB on 2026-11-27) and a margin of 1 MiB
 
 keep_carries() {  # this call's carried parts into /tmp/hdrcam-carry, and the earlier calls' back from there
     local kept=/tmp/hdrcam-carry
@@ -45,6 +45,7 @@ keep_carries() {  # this call's carried parts into /tmp/hdrcam-carry, and the ea
         fi
     done
     cp -r "$kept/gpu-data/." gpu-data/
+    find gpu-data -name '*.gz' -exec gunzip -f {} +  # prepare gzips the photographs (11 % less to carry)
     if [ -d "$kept/.whl" ]; then mkdir -p .whl && cp -r "$kept/.whl/." .whl/; fi
 }
 
@@ -93,18 +94,19 @@ prepare)
     # the training split (tools/split_hdr_train.py), never validation, dealt largest first into the part with
     # the most room: a travels with .whl, b alone, c with gpu-data/d
     python3 - "$CARRY_MIB" <<'DEAL'
-import shutil, sys
+import gzip, sys
 from pathlib import Path
 mib = 2 ** 20
 room = {"a": float(sys.argv[1]) * mib - sum(f.stat().st_size for f in Path(".whl").iterdir()),
         "b": float(sys.argv[1]) * mib,
         "c": float(sys.argv[1]) * mib - sum(f.stat().st_size for f in Path("gpu-data/d").iterdir())}
-for photo in sorted(Path("runs/data/train").iterdir(), key=lambda f: -f.stat().st_size):
+packed = {photo.name: gzip.compress(photo.read_bytes(), 6) for photo in Path("runs/data/train").iterdir()}
+for name in sorted(packed, key=lambda name: -len(packed[name])):
     part = max(room, key=room.get)
-    if room[part] < photo.stat().st_size:
+    if room[part] < len(packed[name]):
         sys.exit(f"error: the training photographs do not fit three carries of {sys.argv[1]} MiB")
-    shutil.copy(photo.resolve(), Path("gpu-data", part, photo.name))
-    room[part] -= photo.stat().st_size
+    Path("gpu-data", part, name + ".gz").write_bytes(packed[name])
+    room[part] -= len(packed[name])
 DEAL
     du -sh gpu-data/* .whl
     echo "carries: 1. gpu-data/a .whl (smoke)  2. gpu-data/b (keep)  3. gpu-data/c gpu-data/d (fit shipped SECONDS)"
