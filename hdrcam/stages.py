@@ -233,7 +233,8 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
              learning_rate: float | None = None, seed: int | None = None, checkpoint_every: int | None = None,
              precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
              vgg_weights: str | Path | None = None, random_vgg: bool = False, device: str = "auto",
-             quiet: bool = False, data_workers: int | None = None, partner: bool | None = None) -> dict:
+             quiet: bool = False, data_workers: int | None = None, partner: bool | None = None,
+             check: str | Path | None = "procedural", check_size_px: int = 256) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
     learning rate (2e-4: the network already works). Writes the run folder ``out`` (model.pt at the end).
@@ -252,7 +253,14 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     the finished main network again, and follows the choice the run was started with (InputError for the other
     one; runs saved before the choice was recorded train a partner unless ``partner`` is False). Returns
     the main run's last logged step (losses, seconds; {} when the main run had already finished);
-    ``hdrcam.stages.finetuned_partner(out)`` names the partner written."""
+    ``hdrcam.stages.finetuned_partner(out)`` names the partner written.
+
+    ``check`` (a call that trained, unless None): the fine-tuned networks are scored against the ones the run
+    started from on 8 held-out test scenes of ``check`` ("procedural", or a folder of photographs kept out of
+    ``data``), ``check_size_px`` px, captured behind the run's PSF; where they score lower the run falls back:
+    ``out``/model.pt (model-partner.pt) holds the start networks behind that PSF and the fine-tuned ones are
+    kept as model-finetuned.pt (model-finetuned-partner.pt). ``out``/check.json records it
+    (hdrcam.train.finetune_check; ``hdrcam.stages.finetune_check_record(out)`` reads it)."""
     from hdrcam.errors import InputError
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
     from hdrcam.train.config import read_run_config
@@ -297,9 +305,16 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
                      channels_last=channels_last, psf=recorded_file(psf))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
                "data_workers": data_workers}
+    if check is not None:  # refused before any training, as every option
+        from hdrcam.data.scenes import SceneSource
+        from hdrcam.evaluate.scoring import check_test_crop
+
+        check_test_crop(check_size_px)
+        SceneSource(check, lenient=True)
     last = _train(out, new_run, {**options, **_given(init_checkpoint=str(start) if checkpoint else None)},
                   resume=resume, **running)
     if not partner_resumes and partner_start is None:
+        _check_finetune(out, trained=bool(last), partner=False, check=check, size_px=check_size_px)
         return last
     new_partner_run = new_run  # unused when the partner's own run continues
     if partner_start is not None:  # the main run's own options (also when this call gave none: a resume)
@@ -312,12 +327,40 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
             _forget_unsaved_run(partner_run)
     given = {**{field: value for field, value in options.items() if field != "seed"},
              **_given(init_checkpoint=str(partner_checkpoint(start)) if checkpoint else None)}
-    _train(partner_run, new_partner_run, given, resume=partner_resumes, **running)
+    partner_last = _train(partner_run, new_partner_run, given, resume=partner_resumes, **running)
     if first_process():  # under torchrun only the first process writes
         from hdrcam.io.atomic import write_bytes_atomic
 
         write_bytes_atomic(partner_model, (partner_run / "model.pt").read_bytes(), overwrite=resume)
+    _check_finetune(out, trained=bool(last or partner_last), partner=True, check=check, size_px=check_size_px)
     return last
+
+
+def _check_finetune(out: Path, *, trained: bool, partner: bool, check, size_px: int) -> None:
+    """:func:`finetune`'s check (hdrcam.train.finetune_check) of the run in ``out`` against the checkpoints it
+    recorded as its starts, when this call trained and ``check`` is not None; its summary on stderr."""
+    if check is None or not trained or not first_process():
+        return
+    import sys
+
+    from hdrcam.train.checkpoint import recorded_checkpoint
+    from hdrcam.train.config import read_run_config
+    from hdrcam.train.finetune_check import check_finetune
+
+    def began(run: Path) -> Path:
+        return recorded_checkpoint(read_run_config(run / "config.json")["init_checkpoint"])
+
+    result = check_finetune(out, began(out), began(out / PARTNER_RUN) if partner else None, data=str(check),
+                            size_px=size_px)
+    print(f"finetune check: {result.summary()}", file=sys.stderr)
+
+
+def finetune_check_record(out: str | Path) -> dict | None:
+    """What :func:`finetune`'s check wrote in ``out``/check.json (scores, dB, and which networks model.pt holds),
+    None where no check ran."""
+    from hdrcam.train.finetune_check import read_check
+
+    return read_check(Path(out))
 
 
 PARTNER_RUN = "partner"  # finetune's run folder for the partner network, inside the main run's

@@ -73,7 +73,8 @@ def test_finetune_design_and_evaluate_through_the_api(tmp_path):
     from hdrcam.train.checkpoint import load_model
 
     psf_path = write_exr(tmp_path / "psf.exr", load_model().psf.transpose(1, 2, 0), channel_names=("R", "G", "B"))
-    tuned = hdrcam.finetune(psf_path, tmp_path / "tuned", steps=2, batch=1, crop_px=32, device="cpu", quiet=True)
+    tuned = hdrcam.finetune(psf_path, tmp_path / "tuned", steps=2, batch=1, crop_px=32, device="cpu", quiet=True,
+                            check=None)
     designed = hdrcam.design(tmp_path / "designed", psf="dirac", steps=1, batch=1, crop_px=32, device="cpu", quiet=True)
     assert tuned["step"] == 2 and designed["step"] == 1 and np.isfinite(tuned["total"])
     assert (tmp_path / "tuned" / "model.pt").is_file() and (tmp_path / "designed" / "model.pt").is_file()

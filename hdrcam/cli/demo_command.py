@@ -58,6 +58,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.limits import check_image_size
     from hdrcam.train.checkpoint import load_model, partner_checkpoint
     from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL
+    from hdrcam.stages import finetune_check_record
 
     height, width = arguments.size
     check_image_size("--size", height, width, CAPTURE_BYTES_PER_PIXEL, "use a smaller --size")
@@ -102,9 +103,10 @@ def run(arguments: argparse.Namespace) -> int:
         write_png(out / f"preview-{name}.png", tonemap_rgb(image, log_average=exposure))
     seconds = round(time.perf_counter() - started, 1)
     partner = partner_checkpoint(checkpoint)  # reconstruct ran it with the checkpoint when it exists
+    check = finetune_check_record(out / "4-finetune") if arguments.finetune_steps > 0 else None
     write_text_atomic(out / "index.md", _index(scores, timings, seconds, checkpoint, psf_l1,
                                                partner if partner.is_file() else None,
-                                               finetuned=arguments.finetune_steps > 0))
+                                               finetuned=arguments.finetune_steps > 0, check=check))
     print(json.dumps({"out": str(out), "seconds": seconds, "step_seconds": timings,
                       "psnr_linear_db": {k: round(v["psnr_linear"], 2) for k, v in scores.items()},
                       "pu21_psnr_db": {k: round(v["pu21_psnr"], 2) for k, v in scores.items()},
@@ -114,14 +116,17 @@ def run(arguments: argparse.Namespace) -> int:
 
 
 def _index(scores: dict, timings: dict, seconds: float, checkpoint: Path, psf_l1, partner: Path | None, *,
-           finetuned: bool) -> str:
+           finetuned: bool, check: dict | None = None) -> str:
     rows = "\n".join(f"| {name} | {m['psnr_linear']:.2f} | {m['pu21_psnr']:.2f} | {m['psnr_mu']:.2f} |"
                      for name, m in scores.items())
     steps = "\n".join(f"| {label} | {value} |" for label, value in timings.items())
     networks = (f"Networks: `{checkpoint}` and its partner `{partner}` (reconstruct keeps what both paint, "
                 "except where strong streaks bear one out)" if partner else f"Network: `{checkpoint}`")
-    finetune_folder = ("`4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and run partner/), "
-                       if finetuned else "")
+    finetune_folder = ("`4-finetune/` (model.pt, log, plots; the partner's model-partner.pt and run partner/; "
+                       "check.json), " if finetuned else "")
+    if check:
+        networks += f". Fine-tune check (4-finetune/check.json): {check['summary']}"
+
     return f"""# hdrcam demo
 
 The whole chain on the simulated camera, {seconds} s in all. {networks}.

@@ -22,7 +22,7 @@ TINY = ["--steps", "2", "--crop", "64", "--batch", "1", "--device", "cpu"]
 
 
 def _finetune(out: Path, *options) -> list[str]:
-    return ["finetune", "--psf", str(MEASURED_PSF), *TINY, *options, "--out", str(out)]
+    return ["finetune", "--no-check", "--psf", str(MEASURED_PSF), *TINY, *options, "--out", str(out)]
 
 
 def _summary(capsys) -> dict:
@@ -72,13 +72,13 @@ def test_a_resume_follows_the_partner_choice_the_run_was_started_with(tmp_path, 
     made with its partner, resumed with --no-partner, is told it was started otherwise."""
     alone, paired = tmp_path / "alone", tmp_path / "paired"
     assert main(_finetune(alone, "--no-partner")) == 0
-    assert main(["finetune", "--out", str(alone), "--resume", "--steps", "3"]) == 0
+    assert main(["finetune", "--no-check", "--out", str(alone), "--resume", "--steps", "3"]) == 0
     assert _summary(capsys)["partner"] is None
     assert read_checkpoint(alone / "model.pt")["step"] == 3
     assert not (alone / "model-partner.pt").exists() and not (alone / "partner").exists()
     assert main(_finetune(paired)) == 0
     capsys.readouterr()
-    assert main(["finetune", "--out", str(paired), "--resume", "--steps", "3", "--no-partner"]) == 1
+    assert main(["finetune", "--no-check", "--out", str(paired), "--resume", "--steps", "3", "--no-partner"]) == 1
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "was started without --no-partner" in error, error
     assert read_checkpoint(paired / "model.pt")["step"] == 2  # nothing trained by the refused call
@@ -174,7 +174,7 @@ def test_a_partner_restarted_by_a_bare_resume_takes_the_main_runs_options(tmp_pa
     steps = _stop_the_partner_at_once(monkeypatch)
     assert main(_finetune(out, "--lr", "1e-4")) == 130
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--out", str(out), "--resume"]) == 0  # the run's own PSF (--psf was required)
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume"]) == 0  # the run's own PSF (--psf was required)
     capsys.readouterr()
     main_run = json.loads((out / "config.json").read_text())
     partner = json.loads((out / "partner" / "config.json").read_text())
@@ -197,24 +197,24 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     assert main(_finetune(out, "--no-partner", "--lr", "1e-4")) == 130
     assert not (out / "checkpoint.pt").exists()
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--out", str(out), "--resume", "--no-partner"]) == 0  # its PSF from config.json
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume", "--no-partner"]) == 0  # its PSF from config.json
     capsys.readouterr()
     saved = read_checkpoint(out / "checkpoint.pt")["config"]
     assert (saved["steps"], saved["crop_px"], saved["learning_rate"]) == (2, 64, 1e-4)
     assert Path(saved["psf"]).resolve() == MEASURED_PSF.resolve()
-    assert main(["finetune", "--out", str(tmp_path / "new")]) == 1  # a new run has no PSF to take
+    assert main(["finetune", "--no-check", "--out", str(tmp_path / "new")]) == 1  # a new run has no PSF to take
     assert "finetune needs --psf" in capsys.readouterr().err
-    assert main(["finetune", "--out", str(tmp_path / "new"), "--resume"]) == 1
+    assert main(["finetune", "--no-check", "--out", str(tmp_path / "new"), "--resume"]) == 1
     assert "holds no run to resume; start one with --psf" in capsys.readouterr().err
     moved = tmp_path / "moved.exr"
     shutil.copy(MEASURED_PSF, moved)
     config = json.loads((out / "config.json").read_text())
     (out / "config.json").write_text(json.dumps({**config, "psf": str(tmp_path / "gone.exr")}))
     (out / "checkpoint.pt").unlink()  # the run as if stopped before its first checkpoint: config.json holds the PSF
-    assert main(["finetune", "--out", str(out), "--resume", "--no-partner"]) == 1
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume", "--no-partner"]) == 1
     assert f"({tmp_path / 'gone.exr'}, its config.json) is gone and {out} saved no checkpoint holding it; give it, " \
         "or a copy of it, with --psf" in capsys.readouterr().err
-    assert main(["finetune", "--psf", str(moved), "--out", str(out), "--resume", "--no-partner"]) == 0
+    assert main(["finetune", "--no-check", "--psf", str(moved), "--out", str(out), "--resume", "--no-partner"]) == 0
 
 
 def test_a_run_whose_psf_file_is_gone_resumes_behind_the_psf_its_checkpoint_holds(tmp_path, capsys):
@@ -223,9 +223,9 @@ def test_a_run_whose_psf_file_is_gone_resumes_behind_the_psf_its_checkpoint_hold
     psf_path = tmp_path / "psf.exr"
     shutil.copyfile(MEASURED_PSF, psf_path)
     out = tmp_path / "run"
-    assert main(["finetune", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]) == 0
+    assert main(["finetune", "--no-check", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]) == 0
     psf_path.unlink()
-    assert main(["finetune", "--steps", "3", "--no-partner", "--out", str(out), "--resume"]) == 0
+    assert main(["finetune", "--no-check", "--steps", "3", "--no-partner", "--out", str(out), "--resume"]) == 0
     np.testing.assert_array_equal(read_checkpoint(out / "model.pt")["psf"].numpy(), load_psf(MEASURED_PSF))
     assert read_checkpoint(out / "model.pt")["step"] == 3
 
@@ -238,7 +238,7 @@ def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_pat
     capsys.readouterr()
     assert main(_finetune(out, "--no-partner", "--resume", "--steps", "3")) == 1
     assert "log.jsonl: line 3 is damaged" in capsys.readouterr().err
-    assert main(["finetune", "--psf", str(MEASURED_PSF.parent), *TINY, "--out", str(tmp_path / "other")]) == 1
+    assert main(["finetune", "--no-check", "--psf", str(MEASURED_PSF.parent), *TINY, "--out", str(tmp_path / "other")]) == 1
     assert f"give the PSF inside it: {MEASURED_PSF}" in capsys.readouterr().err
 
 
@@ -251,12 +251,12 @@ def test_a_psf_file_changed_before_a_resume_is_refused(tmp_path, capsys):
     psf_path = tmp_path / "psf.exr"
     shutil.copyfile(MEASURED_PSF, psf_path)
     out = tmp_path / "run"
-    argv = ["finetune", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]
+    argv = ["finetune", "--no-check", "--psf", str(psf_path), *TINY, "--no-partner", "--out", str(out)]
     assert main(argv) == 0
     psf = load_psf(MEASURED_PSF)
     write_exr(psf_path, np.roll(psf, 1, axis=-1).transpose(1, 2, 0), overwrite=True)
     capsys.readouterr()
-    assert main(["finetune", "--psf", str(psf_path), "--steps", "3", "--no-partner", "--out", str(out),
+    assert main(["finetune", "--no-check", "--psf", str(psf_path), "--steps", "3", "--no-partner", "--out", str(out),
                  "--resume"]) == 1
     assert "not the PSF run trained behind" in capsys.readouterr().err
 
@@ -345,5 +345,5 @@ def test_a_run_from_a_checkpoint_without_a_partner_resumes_with_no_partner_too(t
     out = tmp_path / "run"
     assert main(_finetune(out, "--checkpoint", str(start))) == 0
     assert read_checkpoint(out / "model.pt")["config"]["finetune_partner"] is False
-    assert main(["finetune", "--out", str(out), "--resume", "--steps", "3", "--no-partner"]) == 0
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume", "--steps", "3", "--no-partner"]) == 0
     assert read_checkpoint(out / "model.pt")["step"] == 3 and not (out / "partner").exists()
