@@ -86,8 +86,12 @@ def check_source_size(source: SourceSize, size_px: int) -> None:
     deconvolution could take out: only warned about. A disc wider than the
     fitted PSF puts the bulk of each source's light, not only the PSF's faint wings, outside the fitted grid and
     into the background annulus just beyond the window, where it is subtracted as background: the record would
-    hold neither the disc nor the lens's PSF. A lower limit (a quarter of the size, say) would be a guess with
-    nothing measured behind it: any disc over a pixel already puts the PSF far off, and the warning says so."""
+    hold neither the disc nor the lens's PSF. Measured (24 pinholes 40.6 px apart, simulated DOE, --size 15, the
+    PSF blurred by a disc of D px, L1 R/G/B): D 1 px 2.9/1.9/3.5 % as D 0; 1.5 px 35/46/59 %; 2 px 59/76/95 %;
+    4 px 98/107/130 %; 8 px 145/152/158 %, none warned of by any other check; at 12 and 16 px the fit moved
+    sources out of their windows and refused them as extended objects, naming no size. The error grows smoothly
+    to its saturation, with no step to put a lower limit at: any disc over a pixel is far off, which the warning
+    says."""
     largest_mm = 1e3 * source.largest_within_pixel_m
     scale = 10.0 ** (math.floor(math.log10(largest_mm)) - 2)  # 3 significant figures, rounded down: within, not over
     within = (f"a source up to {math.floor(largest_mm / scale) * scale:.3g} mm wide at {source.distance_m:g} m "
