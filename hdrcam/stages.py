@@ -166,21 +166,29 @@ def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFI
 
 def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE,
                   darks: str | Path | None = None,
-                  size_px: int | None = None, energy_fraction: float | None = None) -> "PsfCalibration":
+                  size_px: int | None = None, energy_fraction: float | None = None,
+                  source_diameter_m: float | None = None, source_distance_m: float | None = None
+                  ) -> "PsfCalibration":
     """Measure the PSF from a point-source (best: pinhole-array) bracket, on the Bayer data.
 
     ``size_px``: the odd PSF size in pixels (default: the profile's); ``energy_fraction``: crop to the smallest
-    size holding this fraction of every channel's energy. ``darks`` locate hot pixels. Returns the
+    size holding this fraction of every channel's energy. ``darks`` locate hot pixels. ``source_diameter_m``: the
+    point source's (pinhole's) diameter in metres, at ``source_distance_m`` metres from the lens (default: the
+    profile's calibration.point_source_distance_m); its geometric image is warned about when wider than 1 px and
+    refused when wider than ``size_px`` (hdrcam.calibrate.psf_calibration.check_source_size). Returns the
     calibration: ``psf`` (3 x S x S float, camera RGB, each channel summing to 1, optical axis at S // 2),
-    per-source fits, energy in the crop and the fit's reduced chi^2.
+    per-source fits, energy in the crop, the fit's reduced chi^2 and ``source`` (the source's image size in
+    pixels, ``image_px``; None without a diameter).
     """
     from hdrcam.calibrate.psf_calibration import calibrate_psf as calibrate
+    from hdrcam.calibrate.psf_calibration import source_size
     from hdrcam.profiles import load_profile
 
     chosen = load_profile(profile)
+    source = source_size(source_diameter_m, source_distance_m, chosen)
     return calibrate(_sources(bracket), chosen.camera, darks=Path(darks) if darks else None,
                      size_px=chosen.simulation.psf_size_px if size_px is None else size_px,
-                     energy_fraction=energy_fraction)
+                     energy_fraction=energy_fraction, source=source)
 
 
 def _sources(bracket: "str | Path | list[str | Path]") -> list[Path]:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from hdrcam.calibrate.effective_psf import green_centroid_offset
-from hdrcam.calibrate.psf_calibration import PsfCalibration
+from hdrcam.calibrate.psf_calibration import PsfCalibration, SourceSize
 from hdrcam.capture.manifest import sha256_of, software_versions
 from hdrcam.io.atomic import atomic_paths, write_text_atomic
 from hdrcam.io.exr import write_exr
@@ -53,9 +53,21 @@ def record_document(calibration: PsfCalibration, profile: Profile, command: str)
         "reduced_chi2": fit.reduced_chi2,
         "outlier_samples_left_out": fit.outlier_samples,
         "negative_energy_clipped": [float(n) for n in fit.negative_energy],
+        "source": _source_entry(calibration.source),
         "units": "PSF: fraction of each channel's energy per pixel (unit sum); background: relative radiance",
         "software": software_versions(),
     }
+
+
+def _source_entry(source: SourceSize | None) -> dict:
+    """The point source's size and its geometric image on the sensor, or that it was not given."""
+    if source is None:
+        return {"given": False, "image_px": None,
+                "note": "source diameter not given (--source-diameter-mm): its image size was not checked"}
+    return {"given": True, "diameter_m": source.diameter_m, "distance_m": source.distance_m,
+            "distance_from": "given" if source.distance_given else "profile calibration.point_source_distance_m",
+            "image_px": source.image_px, "largest_within_one_pixel_m": source.largest_within_pixel_m,
+            "units": "metres; image_px: geometric (thin-lens) image diameter in pixels"}
 
 
 def _file_entry(path: Path, exposure_s: float) -> dict:

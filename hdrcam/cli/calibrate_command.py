@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import add_profile_option, positive_int
+from hdrcam.cli.arguments import add_profile_option, positive_finite_float, positive_int
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import check_outputs
 from hdrcam.profiles import load_profile
@@ -34,13 +34,19 @@ def register(commands) -> None:
                      help="PSF size to fit, odd (default: the profile's psf_size_px)")
     psf.add_argument("--energy-fraction", type=fraction, default=None, metavar="F",
                      help="crop to the smallest size holding this fraction of every channel's energy")
+    psf.add_argument("--source-diameter-mm", type=positive_finite_float, default=None, metavar="MM",
+                     help="the point source's (pinhole's) diameter in mm: its image on the sensor is computed, "
+                          "warned about over 1 px and refused over --size")
+    psf.add_argument("--source-distance-m", type=positive_finite_float, default=None, metavar="M",
+                     help="the source's distance from the lens in metres, with --source-diameter-mm (default: the "
+                          "profile's calibration.point_source_distance_m)")
     psf.add_argument("--overwrite", action="store_true")
     add_profile_option(psf)
     psf.set_defaults(run=run, command_name="calibrate psf")
 
 
 def run(arguments: argparse.Namespace) -> int:
-    from hdrcam.calibrate.psf_calibration import calibrate_psf
+    from hdrcam.calibrate.psf_calibration import calibrate_psf, source_size
     from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
     from hdrcam.hdr.bracket_input import bracket_input_files
 
@@ -48,13 +54,15 @@ def run(arguments: argparse.Namespace) -> int:
     size = arguments.size or profile.simulation.psf_size_px
     if size % 2 == 0:
         raise InputError(f"--size {size}: the PSF size must be odd (a centre pixel)")
+    diameter_mm = arguments.source_diameter_mm
+    source = source_size(None if diameter_mm is None else diameter_mm / 1000, arguments.source_distance_m, profile)
     inputs = bracket_input_files(arguments.bracket)
     if arguments.darks:
         inputs += bracket_input_files([arguments.darks], kind="dark")
     check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
     calibration = calibrate_psf(arguments.bracket, profile.camera, darks=arguments.darks, size_px=size,
-                                energy_fraction=arguments.energy_fraction)
+                                energy_fraction=arguments.energy_fraction, source=source)
     command = "hdrcam " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else "hdrcam calibrate psf"
     paths = write_record(arguments.out, calibration, profile, command, overwrite=arguments.overwrite)
     fit = calibration.fit
