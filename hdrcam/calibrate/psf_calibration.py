@@ -80,8 +80,8 @@ def source_size(diameter_m: float | None, distance_m: float | None, profile: Pro
 def check_source_size(source: SourceSize, size_px: int) -> None:
     """Warn when the source's geometric image is wider than a pixel, refuse (InputError) when wider than the PSF
     ``size_px`` (pixels). The data then show the true PSF blurred by the image of the source, a disc
-    ``source.image_px`` wide, and the fit matches them to the noise: an audit measured such PSFs 93-150 % off in L1
-    with a fine reduced chi2 and no warning. Up to ``size_px`` the bulk of that blurred PSF (the disc blurred by
+    ``source.image_px`` wide, and the fit matches them to the noise, with a fine reduced chi2 and no other
+    warning (measured below). Up to ``size_px`` the bulk of that blurred PSF (the disc blurred by
     the PSF's core) stays on the fitted grid, so the record is the PSF behind a known disc, which a later
     deconvolution could take out: only warned about. A disc wider than the
     fitted PSF puts the bulk of each source's light, not only the PSF's faint wings, outside the fitted grid and
