@@ -82,7 +82,8 @@ class _Source:
         if not (low_y <= self.y_px < high_y and low_x <= self.x_px < high_x):
             raise InputError(f"no usable point source: the fit moved the source found at (y {window.y_px:.0f}, "
                              f"x {window.x_px:.0f}) px out of its window - not a point source (an extended "
-                             "or overlapping object?), or not one place in every frame (the camera or the target "
+                             "or overlapping object, or a pinhole imaged many pixels wide: --source-diameter-mm "
+                             "checks), or not one place in every frame (the camera or the target "
                              "moved between exposures, or the frames or darks come from different captures)")
         row, fraction_y = split_position(self.y_px)
         column, fraction_x = split_position(self.x_px)
