@@ -79,3 +79,31 @@ def test_a_check_folder_that_does_not_exist_is_refused_before_training(tmp_path,
     assert main(["finetune", "--psf", str(MEASURED_PSF), "--steps", "1", "--crop", "64", "--batch", "1",
                  "--check-data", str(tmp_path / "missing"), "--out", str(out)]) == 1
     assert "missing" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_resumed_run_is_checked_again_and_its_newer_networks_kept_beside(tmp_path):
+    """A learning rate of 1 wrecks the network in one step: the check falls back; resumed for a step more, the run
+    is checked again, model.pt still the start's network, model-finetuned.pt the newer step's."""
+    from hdrcam.stages import finetune
+
+    out = tmp_path / "run"
+    options = dict(steps=1, crop_px=64, batch=1, learning_rate=1.0, partner=False, device="cpu", quiet=True,
+                   check_size_px=64)
+    finetune(MEASURED_PSF, out, **options)
+    assert json.loads((out / "check.json").read_text())["kept"] == "start"
+    assert read_checkpoint(out / "model-finetuned.pt")["step"] == 1
+    finetune(None, out, resume=True, steps=2, quiet=True, check_size_px=64)
+    assert json.loads((out / "check.json").read_text())["kept"] == "start"
+    assert read_checkpoint(out / "model-finetuned.pt")["step"] == 2
+    now, began = read_checkpoint(out / "model.pt")["network"], read_checkpoint(SHIPPED_CHECKPOINT)["network"]
+    assert all(torch.equal(now[name], began[name]) for name in began)
+
+
+def test_photographs_kept_out_of_training_can_be_the_check(shared_data, tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    _behind_measured_psf(SHIPPED_CHECKPOINT, out / "model.pt", scrambled=True)
+    check = check_finetune(out, SHIPPED_CHECKPOINT, None, data=str(shared_data / "hdr"), size_px=64)
+    assert check.data.endswith("hdr") and check.scenes == 6  # the six openexr-images photographs
+    assert check.kept == ("start" if check.finetuned_db < check.start_db else "finetuned")
+    assert json.loads((out / "check.json").read_text())["data"] == check.data
