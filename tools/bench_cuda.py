@@ -30,6 +30,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench import build as network  # noqa: E402  the shipped `fast` network, or a preset with seeded weights
+
 PEAK_RADIANCE = 2.0 ** 8
 
 
@@ -66,19 +69,6 @@ def median_ms(forward, device: torch.device, repeats: int) -> float:
         synchronize(device)
         times.append(time.perf_counter() - started)
     return 1e3 * statistics.median(times)
-
-
-def network(name: str) -> torch.nn.Module:
-    from hdrcam.recon.network import ReconstructionNet
-    from hdrcam.recon.presets import preset
-    from hdrcam.recon.vgg import load_vgg19
-    from hdrcam.train.checkpoint import load_model
-
-    if name == "fast":
-        return load_model().network.eval()
-    torch.manual_seed(0)
-    chosen = preset(name)
-    return ReconstructionNet(chosen, load_vgg19(random_features=True) if chosen.vgg_features else None).eval()
 
 
 def set_backends(*, tf32: bool, autotune: bool) -> None:
