@@ -25,7 +25,10 @@
 # written first, then ship with tools/ship_checkpoint.py.
 # a7-rank1: ship the finished run (model.pt, psf.exr, loss.png) with tools/ship_table2.py. Its slices resume the
 # run folder a call left: /tmp was seen to stay between calls, the tree's ignored runs/ was not checked, so give
-# RUN=/tmp/a7-rank1 (and copy $OUT's files back into it on a fresh machine).
+# RUN=/tmp/a7-rank1. Across sessions: commit $OUT's checkpoint.pt.gz, config.json and log.jsonl at once (as
+# leg10/ was: into a folder, then out of the tree in the next commit), and in the next session run
+# `A7_FROM=REV:FOLDER bash tools/gpu/train.sh prepare`, which puts them in gpu-data/a7-run for the third carry
+# (the slice needs no gpu-data/d, whose room it takes); the slice starts from them where RUN holds no run.
 # STEPS, CROP, BATCH, DATA, RUN override a job's defaults (a CPU smoke test: CROP=64 BATCH=1 STEPS=2
 # DATA=procedural).
 set -euo pipefail
@@ -89,6 +92,12 @@ prepare)
     grep -qx '/gpu-data/' "$exclude" || echo /gpu-data/ >> "$exclude"
     grep -qx '/.whl/' "$exclude" || echo /.whl/ >> "$exclude"
     cp ../shared/data/hdr/*.exr gpu-data/d/  # the openexr-images photographs, in the shipped network's mixture
+    if [ -n "${A7_FROM:-}" ]; then  # REV:FOLDER, an a7-rank1 slice's files committed there: the run to resume
+        mkdir -p gpu-data/a7-run
+        for saved in checkpoint.pt.gz config.json log.jsonl; do  # the device unpacks the .gz as it keeps it
+            git show "$A7_FROM/$saved" > "gpu-data/a7-run/$saved"
+        done
+    fi
     python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
         --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl "OpenEXR==3.5.3"
     # the training split (tools/split_hdr_train.py), never validation, dealt largest first into the part with
@@ -99,7 +108,8 @@ from pathlib import Path
 mib = 2 ** 20
 room = {"a": float(sys.argv[1]) * mib - sum(f.stat().st_size for f in Path(".whl").iterdir()),
         "b": float(sys.argv[1]) * mib,
-        "c": float(sys.argv[1]) * mib - sum(f.stat().st_size for f in Path("gpu-data/d").iterdir())}
+        "c": float(sys.argv[1]) * mib - max(sum(f.stat().st_size for f in Path(part).iterdir())
+                                             for part in ("gpu-data/d", "gpu-data/a7-run") if Path(part).is_dir())}
 packed = {photo.name: gzip.compress(photo.read_bytes(), 6) for photo in Path("runs/data/train").iterdir()}
 for name in sorted(packed, key=lambda name: -len(packed[name])):
     part = max(room, key=room.get)
@@ -110,6 +120,7 @@ for name in sorted(packed, key=lambda name: -len(packed[name])):
 DEAL
     du -sh gpu-data/* .whl
     echo "carries: 1. gpu-data/a .whl (smoke)  2. gpu-data/b (keep)  3. gpu-data/c gpu-data/d (fit shipped SECONDS)"
+    echo "         or 3. gpu-data/c gpu-data/a7-run (slice a7-rank1 SECONDS; a7-run only with A7_FROM)"
     ;;
 keep)  # on the device: a call that only carries
     keep_carries
@@ -184,6 +195,9 @@ slice)
           --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
           --data "${DATA:-$(photographs 0.7),procedural:0.3}"
           --precision bfloat16 --channels-last --checkpoint-every 100 --out "$RUN")
+    if [ -f gpu-data/a7-run/checkpoint.pt ] && [ ! -f "$RUN/checkpoint.pt" ]; then  # carried from a past session
+        mkdir -p "$RUN" && cp gpu-data/a7-run/* "$RUN/"
+    fi
     if [ -f "$RUN/config.json" ] && [ ! -f "$RUN/checkpoint.pt" ]; then  # a slice ended before the first save
         mv "$RUN" "$RUN.unsaved-$(date +%s)"  # kept aside; the run starts again
     fi
@@ -191,10 +205,12 @@ slice)
     status=0
     timeout "${3:-540}" python3 -m hdrcam "${args[@]}" || status=$?
     [ $status -eq 0 ] || [ $status -eq 124 ] || exit $status  # a slice ends by its time limit (124)
-    if [ -n "${OUT:-}" ]; then  # what a resume needs, in the run folder's layout
-        for saved in checkpoint.pt log.jsonl config.json model.pt; do
+    if [ -n "${OUT:-}" ]; then  # what a resume needs, in the run folder's layout; the checkpoint (17 MB at
+        # 64 px crops, its DOE's 1527^2 heights 9.4 MB of it) gzipped under the 16 MiB a file may bring back
+        for saved in log.jsonl config.json model.pt; do
             if [ -f "$RUN/$saved" ]; then cp "$RUN/$saved" "$OUT/$saved"; fi
         done
+        if [ -f "$RUN/checkpoint.pt" ]; then gzip -1 -c "$RUN/checkpoint.pt" > "$OUT/checkpoint.pt.gz"; fi
     fi
     tail -n 1 "$RUN/log.jsonl" 2>/dev/null || echo "no step logged yet"
     ;;
