@@ -263,7 +263,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     the main run's last logged step (losses, seconds; {} when the main run had already finished);
     ``hdrcam.stages.finetuned_partner(out)`` names the partner written.
 
-    ``check`` (a call that trained, unless None): the fine-tuned networks are scored against the ones the run
+    ``check`` (a call that trained or finds the finished run unchecked, unless None): the fine-tuned networks are scored against the ones the run
     started from on 8 held-out test scenes of ``check`` ("procedural", or a folder of photographs kept out of
     ``data``), ``check_size_px`` px, captured behind the run's PSF; where they score lower the run falls back:
     ``out``/model.pt (model-partner.pt) holds the start networks behind that PSF and the fine-tuned ones are
@@ -346,14 +346,16 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
 
 def _check_finetune(out: Path, *, trained: bool, partner: bool, check, size_px: int) -> None:
     """:func:`finetune`'s check (hdrcam.train.finetune_check) of the run in ``out`` against the checkpoints it
-    recorded as its starts, when this call trained and ``check`` is not None; its summary on stderr."""
-    if check is None or not trained or not first_process():
+    recorded as its starts, unless ``check`` is None: when this call trained, or the finished run holds no check
+    yet (one stopped during its check, or run with none); its summary on stderr."""
+    from hdrcam.train.finetune_check import CHECK_FILE, check_finetune
+
+    if check is None or not first_process() or (not trained and (out / CHECK_FILE).is_file()):
         return
     import sys
 
     from hdrcam.train.checkpoint import recorded_checkpoint
     from hdrcam.train.config import read_run_config
-    from hdrcam.train.finetune_check import check_finetune
 
     def began(run: Path) -> Path:
         return recorded_checkpoint(read_run_config(run / "config.json")["init_checkpoint"])

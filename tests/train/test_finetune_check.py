@@ -107,3 +107,18 @@ def test_photographs_kept_out_of_training_can_be_the_check(shared_data, tmp_path
     assert check.data.endswith("hdr") and check.scenes == 6  # the six openexr-images photographs
     assert check.kept == ("start" if check.finetuned_db < check.start_db else "finetuned")
     assert json.loads((out / "check.json").read_text())["data"] == check.data
+
+
+def test_a_finished_run_without_its_check_is_checked_when_resumed(tmp_path):
+    """A run stopped during its check (or run with none) is checked by the next --resume, which trains nothing."""
+    from hdrcam.stages import finetune
+
+    out = tmp_path / "run"
+    finetune(MEASURED_PSF, out, steps=1, crop_px=64, batch=1, partner=False, device="cpu", quiet=True, check=None)
+    assert not (out / "check.json").exists()
+    assert finetune(None, out, resume=True, quiet=True, check_size_px=64) == {}  # nothing left to train
+    record = json.loads((out / "check.json").read_text())
+    assert record["scenes"] == 8 and record["size_px"] == 64
+    (out / "check.json").write_text('{"marker": "checked before"}')
+    finetune(None, out, resume=True, quiet=True, check_size_px=64)  # checked already: not again
+    assert json.loads((out / "check.json").read_text()) == {"marker": "checked before"}
