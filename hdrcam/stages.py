@@ -201,12 +201,13 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
            batch: int | None = None, crop_px: int | None = None, learning_rate: float | None = None,
            seed: int | None = None, checkpoint_every: int | None = None, precision: str | None = None,
            channels_last: bool | None = None, resume: bool = False, vgg_weights: str | Path | None = None,
-           random_vgg: bool = False, device: str = "auto", quiet: bool = False, data_workers: int | None = None
-           ) -> dict:
+           random_vgg: bool = False, device: str = "auto", quiet: bool = False, data_workers: int | None = None,
+           init_doe: str | Path | None = None) -> dict:
     """Train the reconstruction network and (with ``doe`` rank1 or freeform, the default) the DOE end to end.
 
     ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
-    PSF. ``init``: start the network from this checkpoint's weights (same preset). ``data``: procedural (the
+    PSF. ``init``: start the network from this checkpoint's weights (same preset); ``init_doe``: start the DOE
+    from this checkpoint's trained DOE (same kind, same feature grid: e.g. a PSF-first design). ``data``: procedural (the
     default), a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` (default 1000) Adam steps of
     ``batch`` (4) crops of ``crop_px`` (128) pixels, a multiple of 16; ``learning_rate`` of the network (1e-3,
     polynomial decay); ``preset`` fast, ``profile`` simulated, ``seed`` 0. ``precision`` (float32, bfloat16,
@@ -222,12 +223,13 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
 
     if psf and psf not in FIXED_PSFS and not Path(psf).is_file():
         raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
-    if init is not None and not Path(init).is_file():
-        raise InputError(f"--init {init} does not exist")
+    for option, path in (("--init", init), ("--init-doe", init_doe)):
+        if path is not None and not Path(path).is_file():
+            raise InputError(f"{option} {path} does not exist")
     given = _given(preset=preset, profile=recorded_file(profile), data=recorded_data(data), steps=steps,
                    batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                    checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                   init_checkpoint=recorded_file(init))
+                   init_checkpoint=recorded_file(init), init_doe_checkpoint=recorded_file(init_doe))
     if psf:
         given.update(psf=recorded_file(psf), doe=None)
     elif doe:

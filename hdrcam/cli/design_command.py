@@ -58,6 +58,9 @@ def register(commands) -> None:
     design.add_argument("--init", type=Path, default=None, metavar="CHECKPOINT",
                         help="start the network from this checkpoint's weights (same preset), e.g. to give every "
                              "row of Table 2 the same starting network")
+    design.add_argument("--init-doe", type=Path, default=None, metavar="CHECKPOINT",
+                        help="start the trained DOE from this checkpoint's DOE (same --doe kind and profile), e.g. "
+                             "a PSF-first design such as hdrcam/checkpoints/table2/rank1.pt")
     _training_options(design, 1000)
     design.set_defaults(run=run_design)
 
@@ -111,7 +114,7 @@ def run_design(arguments: argparse.Namespace) -> int:
     from hdrcam.stages import design
 
     return _train(design, arguments, preset=arguments.preset, profile=arguments.profile, doe=arguments.doe,
-                  psf=arguments.psf, init=arguments.init)
+                  psf=arguments.psf, init=arguments.init, init_doe=arguments.init_doe)
 
 
 def run_finetune(arguments: argparse.Namespace) -> int:

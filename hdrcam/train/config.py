@@ -30,6 +30,7 @@ class TrainConfig:
     seed: int = 0
     checkpoint_every: int = 100
     init_checkpoint: str | None = None  # start the network from this checkpoint (fine-tuning)
+    init_doe_checkpoint: str | None = None  # start the trained DOE's parameters from this checkpoint's DOE
     precision: str = "float32"  # the network's forward: float32, or autocast to bfloat16 / float16 (CUDA)
     channels_last: bool = False  # NHWC network weights and input (faster convolutions on CUDA tensor cores)
     finetune_partner: bool | None = None  # finetune: the partner network is fine-tuned after this run (None:
@@ -51,6 +52,9 @@ class TrainConfig:
         for name in ("learning_rate", "doe_learning_rate"):
             if not 0 < getattr(self, name) < math.inf:
                 raise InputError(f"{name} must be a positive, finite number, got {getattr(self, name)!r}")
+        if self.init_doe_checkpoint is not None and self.doe is None:
+            raise InputError("a DOE to start from (init_doe_checkpoint, --init-doe) needs a DOE to train (doe rank1 "
+                             "or freeform), not a fixed psf")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 32:
             raise InputError(f"seed must be a whole number from 0 to 2^32 - 1, got {self.seed!r}")
 

@@ -100,7 +100,27 @@ def build_model(config: TrainConfig, vgg_weights: Path | None, random_vgg: bool,
         if state["preset"] != preset.name:
             raise InputError(f"{config.init_checkpoint} holds a {state['preset']!r} network, not {preset.name!r}")
         load_network_weights(network, state["network"], config.init_checkpoint)
+    if config.init_doe_checkpoint and saved is None:
+        _start_doe(capture.simulator.heightmap, config)
     return DesignModel(capture, network, precision=config.precision, channels_last=config.channels_last)
+
+
+def _start_doe(heightmap: torch.nn.Module, config: TrainConfig) -> None:
+    """The trained DOE's parameters (rank-1 factors V, Q of Eq. 3, or free-form W) from the DOE saved in
+    ``config.init_doe_checkpoint``: the same kind on the same feature grid, else a one-line InputError."""
+    source = config.init_doe_checkpoint
+    state = read_checkpoint(recorded_checkpoint(source))
+    doe = state.get("doe")
+    if doe is None:
+        raise InputError(f"--init-doe {source}: holds no trained DOE (a network trained behind a fixed PSF)")
+    if doe["kind"] != config.doe:
+        raise InputError(f"--init-doe {source}: holds a {doe['kind']} DOE, this run trains a {config.doe} one")
+    wanted = {name: tuple(value.shape) for name, value in heightmap.state_dict().items()}
+    found = {name: tuple(value.shape) for name, value in doe["parameters"].items()}
+    if wanted != found:
+        raise InputError(f"--init-doe {source}: its DOE's parameters {found} (profile {state['profile']}) do not fit "
+                         f"this run's {wanted} (profile {config.profile})")
+    heightmap.load_state_dict(doe["parameters"])
 
 
 def _distributed() -> tuple[int, int]:
@@ -246,7 +266,7 @@ def _train_steps(config: TrainConfig, out: Path, model: DesignModel, trained: nn
     return last
 
 
-FILE_OPTIONS = ("psf", "init_checkpoint", "profile")  # run options that may name a file
+FILE_OPTIONS = ("psf", "init_checkpoint", "init_doe_checkpoint", "profile")  # run options that may name a file
 
 
 def _check_same_run(checkpoint_path: Path, saved: dict, config: TrainConfig, *,

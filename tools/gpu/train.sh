@@ -191,7 +191,9 @@ slice)
     [ "${2:-}" = a7-rank1 ] || { echo "usage: $0 slice a7-rank1 [SECONDS]" >&2; exit 2; }
     device_python
     RUN=${RUN:-runs/a7-rank1}; RUN=${RUN%/}
+    start=hdrcam/checkpoints/table2/rank1.pt  # the PSF-first rank-1 design and its 800-step network (README)
     args=(design --profile sony-a7-zeiss50-rank1 --doe rank1 --preset fast --steps "${STEPS:-20000}"
+          --init "$start" --init-doe "$start"
           --crop "${CROP:-512}" --batch "${BATCH:-8}" --lr 2e-4
           --data "${DATA:-$(photographs 0.7),procedural:0.3}"
           --precision bfloat16 --channels-last --checkpoint-every 100 --out "$RUN")
