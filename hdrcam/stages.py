@@ -207,12 +207,12 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
 
     ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
     PSF. ``init``: start the network from this checkpoint's weights (same preset); ``init_doe``: start the DOE
-    from this checkpoint's trained DOE (same kind, same feature grid: e.g. a PSF-first design). ``data``: procedural (the
-    default), a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` (default 1000) Adam steps of
-    ``batch`` (4) crops of ``crop_px`` (128) pixels, a multiple of 16; ``learning_rate`` of the network (1e-3,
-    polynomial decay); ``preset`` fast, ``profile`` simulated, ``seed`` 0. ``precision`` (float32, bfloat16,
-    float16 on CUDA) and ``channels_last`` set the network's forward; ``data_workers`` CPU threads draw scenes
-    ahead (hdrcam.train.design). Writes the run folder ``out`` (config, log, checkpoint.pt every
+    from this checkpoint's trained DOE (same kind, same feature grid: e.g. a PSF-first design). ``data``:
+    procedural (the default), a folder of EXR/.hdr photographs, or SOURCE:WEIGHT,... . ``steps`` (default 1000)
+    Adam steps of ``batch`` (4) crops of ``crop_px`` (128) pixels, a multiple of 16; ``learning_rate`` of the
+    network (1e-3, polynomial decay); ``preset`` fast, ``profile`` simulated, ``seed`` 0. ``precision``
+    (float32, bfloat16, float16 on CUDA) and ``channels_last`` set the network's forward; ``data_workers`` CPU
+    threads draw scenes ahead (hdrcam.train.design). Writes the run folder ``out`` (config, log, checkpoint.pt every
     ``checkpoint_every`` (100) steps, and model.pt at the end). ``resume`` continues it: options left as None
     take the run's own values, options given must match them (InputError), except ``steps``, which may grow.
     ``random_vgg``: random VGG-19 features for the ``paper`` preset (tests only). Returns the last logged step
@@ -265,9 +265,10 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     the main run's last logged step (losses, seconds; {} when the main run had already finished);
     ``hdrcam.stages.finetuned_partner(out)`` names the partner written.
 
-    ``check`` (a call that trained or finds the finished run unchecked, unless None): the fine-tuned networks are scored against the ones the run
-    started from on 8 held-out test scenes of ``check`` ("procedural", or a folder of photographs kept out of
-    ``data``), ``check_size_px`` px, captured behind the run's PSF; where they score lower the run falls back:
+    ``check`` (unless None; in a call that trained, or that finds the finished run unchecked): the fine-tuned
+    networks are scored against the ones the run started from on 8 held-out test scenes of ``check``
+    ("procedural", or a folder of photographs kept out of ``data``), ``check_size_px`` px, captured behind the
+    run's PSF; where they score lower the run falls back:
     ``out``/model.pt (model-partner.pt) holds the start networks behind that PSF and the fine-tuned ones are
     kept as model-finetuned.pt (model-finetuned-partner.pt). ``out``/check.json records it
     (hdrcam.train.finetune_check; ``hdrcam.stages.finetune_check_record(out)`` reads it)."""

@@ -50,7 +50,8 @@ def test_design_evaluate_and_finetune(tmp_path, capsys):
                  "--out", str(evaluation)]) == 1  # never overwrites
     _one_line_error(capsys, "already exists")
     fine = tmp_path / "fine"
-    assert main(["finetune", "--no-check", "--checkpoint", str(run / "model.pt"), "--psf", "calibration/simulated-rank1/psf.exr",
+    assert main(["finetune", "--no-check", "--checkpoint", str(run / "model.pt"),
+                 "--psf", "calibration/simulated-rank1/psf.exr",
                  *TINY, "--out", str(fine)]) == 0
     assert load_model(fine / "model.pt").psf.shape == (3, 63, 63)
     capsys.readouterr()

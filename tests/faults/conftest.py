@@ -62,7 +62,8 @@ def command_lines(ws: Workspace, out: Path) -> dict[str, list]:
         "export": ["export", "--format", "torchscript", "--out", out / "model.pt"],
         "evaluate": ["evaluate", "--size", "32", "--count", "1", "--out", out],
         "design": ["design", "--psf", "dirac", "--steps", "1", "--crop", "32", "--batch", "1", "--out", out],
-        "finetune": ["finetune", "--no-check", "--psf", ws.psf, "--steps", "1", "--crop", "32", "--batch", "1", "--out", out],
+        "finetune": ["finetune", "--no-check", "--psf", ws.psf, "--steps", "1", "--crop", "32", "--batch", "1",
+                     "--out", out],
     }
 
 

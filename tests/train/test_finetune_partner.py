@@ -174,7 +174,8 @@ def test_a_partner_restarted_by_a_bare_resume_takes_the_main_runs_options(tmp_pa
     steps = _stop_the_partner_at_once(monkeypatch)
     assert main(_finetune(out, "--lr", "1e-4")) == 130
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--no-check", "--out", str(out), "--resume"]) == 0  # the run's own PSF (--psf was required)
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume"]) == 0  # the run's own PSF (--psf was
+    # required)
     capsys.readouterr()
     main_run = json.loads((out / "config.json").read_text())
     partner = json.loads((out / "partner" / "config.json").read_text())
@@ -197,7 +198,8 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_step_0_with_its_
     assert main(_finetune(out, "--no-partner", "--lr", "1e-4")) == 130
     assert not (out / "checkpoint.pt").exists()
     monkeypatch.setattr(design, "_train_steps", steps)
-    assert main(["finetune", "--no-check", "--out", str(out), "--resume", "--no-partner"]) == 0  # its PSF from config.json
+    assert main(["finetune", "--no-check", "--out", str(out), "--resume", "--no-partner"]) == 0  # its PSF from
+    # config.json
     capsys.readouterr()
     saved = read_checkpoint(out / "checkpoint.pt")["config"]
     assert (saved["steps"], saved["crop_px"], saved["learning_rate"]) == (2, 64, 1e-4)
@@ -238,7 +240,8 @@ def test_a_damaged_log_line_and_a_calibration_folder_as_psf_are_one_line(tmp_pat
     capsys.readouterr()
     assert main(_finetune(out, "--no-partner", "--resume", "--steps", "3")) == 1
     assert "log.jsonl: line 3 is damaged" in capsys.readouterr().err
-    assert main(["finetune", "--no-check", "--psf", str(MEASURED_PSF.parent), *TINY, "--out", str(tmp_path / "other")]) == 1
+    assert main(["finetune", "--no-check", "--psf", str(MEASURED_PSF.parent), *TINY,
+                 "--out", str(tmp_path / "other")]) == 1
     assert f"give the PSF inside it: {MEASURED_PSF}" in capsys.readouterr().err
 
 
