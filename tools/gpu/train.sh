@@ -34,7 +34,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 tree_mib() {  # what the tracked working tree weighs, MiB (it travels with every call)
-    git ls-files -z | xargs -0 du -cb 2>/dev/null | tail -1 | awk '{print $1 / 1048576}'
+    git ls-files -z | xargs -0 stat -c %s 2>/dev/null | awk '{total += $1} END {print total / 1048576}'
 }
 CARRY_MIB=$(awk -v tree="$(tree_mib)" 'BEGIN {print int(64 - tree - 1)}')  # each call's carry: 64 MiB less
 # the working tree (41 MiB on 2026-11-27) and a margin of 1 MiB
