@@ -94,10 +94,10 @@ def _fall_back(out: Path, start: Path, start_partner: Path | None) -> None:
     from hdrcam.io.atomic import write_bytes_atomic
     from hdrcam.train.checkpoint import partner_checkpoint, read_checkpoint, save_checkpoint
 
-    pairs = [(out / "model.pt", start)] + ([(partner_checkpoint(out / "model.pt"), start_partner)]
-                                          if start_partner else [])
-    for written, began in pairs:
-        kept_as = written.with_name(written.stem.replace("model", f"model{FINETUNED_SUFFIX}", 1) + written.suffix)
+    model, kept = out / "model.pt", out / f"model{FINETUNED_SUFFIX}.pt"
+    pairs = [(model, kept, start)] + ([(partner_checkpoint(model), partner_checkpoint(kept), start_partner)]
+                                      if start_partner else [])
+    for written, kept_as, began in pairs:
         write_bytes_atomic(kept_as, written.read_bytes(), overwrite=True)  # this run's own, from an earlier check
         state = read_checkpoint(written)
         save_checkpoint(written, {**state, "network": read_checkpoint(began)["network"], "step": 0})
