@@ -202,7 +202,7 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
            seed: int | None = None, checkpoint_every: int | None = None, precision: str | None = None,
            channels_last: bool | None = None, resume: bool = False, vgg_weights: str | Path | None = None,
            random_vgg: bool = False, device: str = "auto", quiet: bool = False, data_workers: int | None = None,
-           init_doe: str | Path | None = None) -> dict:
+           init_doe: str | Path | None = None, linear_gain_weight: float | None = None) -> dict:
     """Train the reconstruction network and (with ``doe`` rank1 or freeform, the default) the DOE end to end.
 
     ``psf`` (dirac, star8, dual-peak, windshield or a PSF EXR) instead trains the network alone behind a fixed
@@ -215,8 +215,9 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
     threads draw scenes ahead (hdrcam.train.design). Writes the run folder ``out`` (config, log, checkpoint.pt every
     ``checkpoint_every`` (100) steps, and model.pt at the end). ``resume`` continues it: options left as None
     take the run's own values, options given must match them (InputError), except ``steps``, which may grow.
-    ``random_vgg``: random VGG-19 features for the ``paper`` preset (tests only). Returns the last logged step
-    (losses, seconds).
+    ``random_vgg``: random VGG-19 features for the ``paper`` preset (tests only). ``linear_gain_weight``
+    (default 0): weight per dB of the loss term that is minus each scene's linear-PSNR gain over its captured
+    frame (hdrcam.recon.losses.linear_gain_loss). Returns the last logged step (losses, seconds).
     """
     from hdrcam.errors import InputError
     from hdrcam.train.choices import FIXED_PSFS
@@ -229,7 +230,8 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
     given = _given(preset=preset, profile=recorded_file(profile), data=recorded_data(data), steps=steps,
                    batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                    checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
-                   init_checkpoint=recorded_file(init), init_doe_checkpoint=recorded_file(init_doe))
+                   init_checkpoint=recorded_file(init), init_doe_checkpoint=recorded_file(init_doe),
+                   weights=_loss_weights(linear_gain_weight))
     if psf:
         given.update(psf=recorded_file(psf), doe=None)
     elif doe:
@@ -244,7 +246,8 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
              precision: str | None = None, channels_last: bool | None = None, resume: bool = False,
              vgg_weights: str | Path | None = None, random_vgg: bool = False, device: str = "auto",
              quiet: bool = False, data_workers: int | None = None, partner: bool | None = None,
-             check: str | Path | None = "procedural", check_size_px: int = 256) -> dict:
+             check: str | Path | None = "procedural", check_size_px: int = 256,
+             linear_gain_weight: float | None = None) -> dict:
     """Fine-tune a checkpoint's network (default: the shipped one), not its DOE, behind a measured PSF (e.g.
     calibration/NAME/psf.exr). Options as :func:`design`; a new run defaults to 200 steps and a gentler
     learning rate (2e-4: the network already works). Writes the run folder ``out`` (model.pt at the end).
@@ -313,7 +316,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
                "init_checkpoint": str(start), "learning_rate": 2e-4, "finetune_partner": partner_start is not None}
     options = _given(data=recorded_data(data), steps=steps, batch=batch, crop_px=crop_px,
                      learning_rate=learning_rate, seed=seed, checkpoint_every=checkpoint_every, precision=precision,
-                     channels_last=channels_last, psf=recorded_file(psf))
+                     channels_last=channels_last, psf=recorded_file(psf), weights=_loss_weights(linear_gain_weight))
     running = {"vgg_weights": vgg_weights, "random_vgg": random_vgg, "device": device, "quiet": quiet,
                "data_workers": data_workers}
     if check is not None:  # refused before any training, as every option
@@ -498,6 +501,13 @@ def _forget_unsaved_run(folder: Path) -> None:
             (folder / name).unlink(missing_ok=True)
     if dist.is_available() and dist.is_initialized():
         dist.barrier()
+
+
+def _loss_weights(linear_gain_weight: float | None):
+    """The loss weights of a run asked for a linear-gain weight (None: the run's own, or the defaults)."""
+    from hdrcam.recon.losses import LossWeights
+
+    return None if linear_gain_weight is None else LossWeights(linear_gain=linear_gain_weight)
 
 
 def _given(**fields) -> dict:

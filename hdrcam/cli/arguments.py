@@ -38,6 +38,17 @@ def positive_finite_float(text: str) -> float:
     return value
 
 
+def non_negative_finite_float(text: str) -> float:
+    """0 or a positive, finite number (a loss weight)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be 0 or a positive, finite number, got {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     return _int_at_least(text, 1)
 

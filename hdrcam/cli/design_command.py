@@ -7,7 +7,8 @@ import json
 import time
 from pathlib import Path
 
-from hdrcam.cli.arguments import non_negative_int, positive_finite_float, positive_int, random_seed
+from hdrcam.cli.arguments import (non_negative_finite_float, non_negative_int, positive_finite_float, positive_int,
+                                  random_seed)
 from hdrcam.recon.presets import PRESETS
 from hdrcam.train.choices import FIXED_PSFS, TRAINABLE_DOES
 
@@ -41,6 +42,10 @@ def _training_options(parser: argparse.ArgumentParser, default_steps: int) -> No
                         help="CPU threads drawing scenes ahead of each step (default: 0 on a CPU, drawing each "
                              "batch when the step asks, else one per scene of a batch, leaving a core free); "
                              "results do not depend on it")
+    parser.add_argument("--linear-gain-weight", type=non_negative_finite_float, default=None, metavar="W",
+                        help="weight, per dB, of a loss term that is minus each scene's linear-PSNR gain over its "
+                             "captured frame - the evaluation's measure, which a few pixels of a sun dominate "
+                             "(default 0: the paper's losses alone)")
 
 
 def register(commands) -> None:
@@ -99,7 +104,7 @@ def _train(stage, arguments: argparse.Namespace, summary=None, **fields) -> int:
                  checkpoint_every=arguments.checkpoint_every, precision=arguments.precision,
                  channels_last=arguments.channels_last, resume=arguments.resume, vgg_weights=arguments.vgg_weights,
                  random_vgg=arguments.random_vgg, device=arguments.device, data_workers=arguments.data_workers,
-                 **fields)
+                 linear_gain_weight=arguments.linear_gain_weight, **fields)
     from hdrcam.stages import first_process
 
     if not first_process():  # under torchrun only the first process reports

@@ -10,6 +10,10 @@ L = L_U + L_S + L_F (Eq. 10) + w_E L_energy (the 94 % PSF regulariser, design ru
 - L_U = a1 L_feat(I_U, I_U*) + a2 L_excl(I_U, I_r)            (Eq. 11; exclusion loss Eq. 12, Sec. 4.1)
 - L_S = b L_feat(enc(I_S), enc(I_S*)), enc(x) = log2(x) / 8   (I_S in [1, 2^8] -> [0, 1])
 - L_F = Huber((I_hat + eps)^0.5, (I + eps)^0.5)              (Eq. 15)
+- L_gain = 10 log10(MSE(I_hat, I) / MSE(I_LDR, I)) (ours; weight 0 unless asked): minus the linear-PSNR gain over
+  the captured frame, the evaluation's own measure, per scene. Eqs. 10-15 all compress highlights (log2, square
+  root): a sun at the 2^8 cap, a few pixels that carry most of a daylight frame's linear error, weighs as much
+  as any pixel of its sky there (tools/results/real-data/README.md, "Where the remaining gain lies").
 L_feat is the VGG-19 perceptual loss on conv2_2, conv3_2 and conv4_2 (``paper`` preset) or, without VGG,
 L1 of the image plus L1 of its x and y gradients (``lite``, ``fast``). The weights are ours: the paper does
 not print them.
@@ -48,6 +52,7 @@ class LossWeights:
     feature_highlight: float = 2.0  # b
     fusion: float = 4.0  # the highlights are 1-3 % of the pixels but carry most of the linear error
     energy: float = 300.0  # w_E, only when the DOE is trained: 0.02 off target costs 0.12
+    linear_gain: float = 0.0  # L_gain, per dB (0: the paper's Eq. 10 alone)
 
 
 def stage_targets(radiance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -127,6 +132,20 @@ def sqrt_huber_loss(estimate: torch.Tensor, target: torch.Tensor, mask: torch.Te
     return huber.mean() if mask is None else balanced_mean(huber, mask)
 
 
+GAIN_CEILING_DB = 30.0  # L_gain stops rewarding a scene once its error is 30 dB below the frame's
+
+
+def linear_gain_loss(estimate: torch.Tensor, target: torch.Tensor, ldr: torch.Tensor) -> torch.Tensor:
+    """Mean over the batch of 10 log10(MSE(estimate, target) / MSE(ldr, target)) in dB (both (N, 3, H, W),
+    linear, white = 1): minus each scene's linear-PSNR gain over its captured frame. Both errors carry a floor
+    of the frame's error x 10^(-GAIN_CEILING_DB / 10), so a scene the frame already gets right (no pixel above
+    white: error 0) adds nothing and no scene's gradient grows without bound."""
+    ldr_error = (ldr - target).pow(2).mean(dim=(1, 2, 3))
+    error = (estimate - target).pow(2).mean(dim=(1, 2, 3))
+    floor = ldr_error.detach() * 10 ** (-GAIN_CEILING_DB / 10) + torch.finfo(estimate.dtype).tiny
+    return (10 * torch.log10((error + floor) / (ldr_error.detach() + floor))).mean()
+
+
 def reconstruction_loss(output: Reconstruction, radiance: torch.Tensor, weights: LossWeights,
                         vgg: Vgg19Features | None, ldr: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """The terms of Eq. 10 and their sum ``total`` (energy regulariser excluded: see train.design);
@@ -140,5 +159,9 @@ def reconstruction_loss(output: Reconstruction, radiance: torch.Tensor, weights:
                                                               highlight_encoding(highlight_target), vgg, saturated),
         "fusion": weights.fusion * sqrt_huber_loss(output.hdr, radiance, None if vgg is not None else saturated),
     }
+    if weights.linear_gain:
+        if ldr is None:
+            raise ValueError("the linear-gain loss needs the captured frame")
+        terms["linear_gain"] = weights.linear_gain * linear_gain_loss(output.hdr, radiance, ldr)
     terms["total"] = sum(terms.values())
     return terms
