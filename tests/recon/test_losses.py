@@ -5,8 +5,8 @@ import math
 import pytest
 import torch
 
-from hdrcam.recon.losses import (LossWeights, exclusion_loss, highlight_encoding, reconstruction_loss,
-                                 sqrt_huber_loss, stage_targets)
+from hdrcam.recon.losses import (GAIN_CEILING_DB, LossWeights, exclusion_loss, highlight_encoding,
+                                 linear_gain_loss, reconstruction_loss, sqrt_huber_loss, stage_targets)
 from hdrcam.recon.network import Reconstruction
 
 
@@ -65,3 +65,38 @@ def test_perfect_estimate_has_only_the_exclusion_floor():
     terms = reconstruction_loss(output, radiance, LossWeights(), vgg=None)
     assert float(terms["unsaturated"]) == 0.0 and float(terms["highlight"]) == 0.0
     assert float(terms["fusion"]) == 0.0 and float(terms["exclusion"]) < 0.01
+
+
+def test_linear_gain_is_minus_the_psnr_gain_over_the_frame_per_scene():
+    """Scene 0: a sun of 4 pixels at 2^8 on a grey sky, the frame clipped at 1; scene 1: nothing above white."""
+    truth = torch.full((2, 3, 16, 16), 0.5)
+    truth[0, :, 7:9, 7:9] = 256.0
+    frame = truth.clamp(max=1.0)
+    halfway = frame.clone()
+    halfway[0, :, 7:9, 7:9] = 1.0 + 255.0 * (1 - 2 ** -0.5)  # sqrt(1/2) of the error left: MSE halved
+    exact = linear_gain_loss(halfway, truth, frame)
+    assert float(exact) == pytest.approx(0.5 * -10 * math.log10(2.0), abs=5e-3)  # scene 1 adds 0; the floor 0.004
+    assert float(linear_gain_loss(frame, truth, frame)) == pytest.approx(0.0, abs=1e-6)
+    # the truth itself: the gain stops at the ceiling, and its gradient stays finite
+    estimate = truth.clone().requires_grad_(True)
+    at_truth = linear_gain_loss(estimate, truth, frame)
+    at_truth.backward()
+    assert float(at_truth.detach()) == pytest.approx(0.5 * -GAIN_CEILING_DB, abs=5e-3)
+    assert torch.isfinite(estimate.grad).all()
+    # a scene the network makes worse than its frame costs: a lamp painted on the unclipped sky
+    painted = frame.clone()
+    painted[1, :, 0:2, 0:2] = 4.0
+    assert float(linear_gain_loss(painted, truth, frame)) > 10.0
+
+
+def test_the_linear_gain_term_joins_the_total_only_when_weighted():
+    radiance = torch.rand(1, 3, 16, 16) * 4.0
+    frame = radiance.clamp(max=1.0)
+    _, output = _output(radiance.shape, 0.5, 1.0)
+    plain = reconstruction_loss(output, radiance, LossWeights(), vgg=None, ldr=frame)
+    weighted = reconstruction_loss(output, radiance, LossWeights(linear_gain=0.05), vgg=None, ldr=frame)
+    assert "linear_gain" not in plain
+    assert float(weighted["linear_gain"]) == pytest.approx(0.05 * float(linear_gain_loss(output.hdr, radiance, frame)))
+    assert float(weighted["total"]) == pytest.approx(float(plain["total"]) + float(weighted["linear_gain"]), rel=1e-6)
+    with pytest.raises(ValueError, match="captured frame"):
+        reconstruction_loss(output, radiance, LossWeights(linear_gain=0.05), vgg=None)
