@@ -109,7 +109,10 @@ def _start_doe(heightmap: torch.nn.Module, config: TrainConfig) -> None:
     """The trained DOE's parameters (rank-1 factors V, Q of Eq. 3, or free-form W) from the DOE saved in
     ``config.init_doe_checkpoint``: the same kind on the same feature grid, else a one-line InputError."""
     source = config.init_doe_checkpoint
-    state = read_checkpoint(recorded_checkpoint(source))
+    try:
+        state = read_checkpoint(recorded_checkpoint(source))
+    except InputError as error:  # damaged, foreign or missing: say which option named it
+        raise InputError(f"--init-doe: {error}") from None
     doe = state.get("doe")
     if doe is None:
         raise InputError(f"--init-doe {source}: holds no trained DOE (a network trained behind a fixed PSF)")

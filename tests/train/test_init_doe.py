@@ -52,3 +52,12 @@ def test_design_from_the_command_line_starts_from_the_doe_and_records_it(tmp_pat
     assert float((trained - start).abs().max()) < 0.05  # one Adam step of 1e-2 from it (a random start: ~0.3)
     assert main(["design", "--init-doe", str(tmp_path / "missing.pt"), *tiny, "--out", str(tmp_path / "r2")]) == 1
     assert "--init-doe" in capsys.readouterr().err and not (tmp_path / "r2").exists()
+
+
+def test_a_damaged_doe_checkpoint_is_named_by_its_option(tmp_path, capsys):
+    damaged = tmp_path / "damaged.pt"
+    damaged.write_bytes(b"\x00" * 64)
+    tiny = ["--steps", "1", "--crop", "32", "--batch", "1", "--device", "cpu"]
+    assert main(["design", "--doe", "rank1", "--init-doe", str(damaged), *tiny, "--out", str(tmp_path / "r")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert "--init-doe" in error and "damaged.pt" in error and "\n" not in error
