@@ -20,6 +20,7 @@ A diagnostic: nothing in the product reads it.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,9 @@ from hdrcam.profiles import load_profile
 from hdrcam.sensor import fft_convolve
 from hdrcam.train.checkpoint import load_model
 from hdrcam.train.optical_capture import OpticalCapture
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import one_line_errors  # noqa: E402
 
 CROP_PX = 512
 CAPPED = HIGHLIGHT_PEAK - 0.1  # a pixel whose brightest channel is here or above sits at the 2^8 cap
@@ -88,15 +92,20 @@ def visible_light(scene: np.ndarray, seed: int, name: str, model, capture: Optic
     return f"{name} {100 * share:5.2f} % snr {snr:5.0f}"
 
 
-def main() -> None:
+def checkpoint_option(text: str) -> tuple[str, Path]:
+    """NAME=PATH; argparse reports anything else in one line."""
+    name, separator, path = text.partition("=")
+    if not (name and separator and path):
+        raise argparse.ArgumentTypeError(f"expected NAME=PATH, got {text!r}")
+    return name, Path(path)
+
+
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("data", type=Path, help="a folder of HDR photographs (evaluate's --data)")
-    parser.add_argument("--checkpoint", action="append", default=[], metavar="NAME=PATH")
+    parser.add_argument("--checkpoint", type=checkpoint_option, action="append", default=[], metavar="NAME=PATH")
     arguments = parser.parse_args()
-    models = {}
-    for item in arguments.checkpoint:
-        name, _, path = item.partition("=")
-        models[name] = load_model(Path(path))
+    models = {name: load_model(path) for name, path in arguments.checkpoint}
     captures = {name: OpticalCapture(load_profile(model.profile), psf=model.psf) for name, model in models.items()}
     margin = max([capture.margin_px for capture in captures.values()], default=0)
     for name, scene, seed in SceneSource(arguments.data, lenient=True).test_scenes(CROP_PX, margin, 10 ** 6):
@@ -106,7 +115,8 @@ def main() -> None:
         shown = [visible_light(scene, seed, label, models[label], capture, margin)
                  for label, capture in captures.items()]
         print(f"{name[:36]:36s} {oracles(truth)}" + ("".join(f" | {item}" for item in shown)))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(one_line_errors.run(main))
