@@ -11,9 +11,10 @@ L = L_U + L_S + L_F (Eq. 10) + w_E L_energy (the 94 % PSF regulariser, design ru
 - L_S = b L_feat(enc(I_S), enc(I_S*)), enc(x) = log2(x) / 8   (I_S in [1, 2^8] -> [0, 1])
 - L_F = Huber((I_hat + eps)^0.5, (I + eps)^0.5)              (Eq. 15)
 - L_gain = 10 log10(MSE(I_hat, I) / MSE(I_LDR, I)) (ours; weight 0 unless asked): minus the linear-PSNR gain over
-  the captured frame, the evaluation's own measure, per scene. Eqs. 10-15 all compress highlights (log2, square
-  root): a sun at the 2^8 cap, a few pixels that carry most of a daylight frame's linear error, weighs as much
-  as any pixel of its sky there (tools/results/real-data/README.md, "Where the remaining gain lies").
+  the captured frame, the evaluation's own measure, per scene. Eqs. 10-15 compress highlights (log2, square
+  roots): a sun pixel at the 2^8 cap estimated at 1.5 costs L_S about 18 times a sky pixel at 2 estimated at
+  1.5, where the squared linear error charges it about 260,000 times - and a few such pixels carry most of a
+  daylight frame's linear error (tools/results/real-data/README.md, "Where the remaining gain lies").
 L_feat is the VGG-19 perceptual loss on conv2_2, conv3_2 and conv4_2 (``paper`` preset) or, without VGG,
 L1 of the image plus L1 of its x and y gradients (``lite``, ``fast``). The weights are ours: the paper does
 not print them.
