@@ -19,12 +19,16 @@ if TYPE_CHECKING:
 MAX_SEED = 2 ** 32 - 1  # numpy's seed sequences refuse negative seeds, torch's generators those past 2^64
 
 
-def positive_float(text: str) -> float:
-    """A positive number; 'inf' allowed (e.g. a source at infinity)."""
+def _number(text: str) -> float:
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def positive_float(text: str) -> float:
+    """A positive number; 'inf' allowed (e.g. a source at infinity)."""
+    value = _number(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
     return value
@@ -40,10 +44,7 @@ def positive_finite_float(text: str) -> float:
 
 def non_negative_finite_float(text: str) -> float:
     """0 or a positive, finite number (a loss weight)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    value = _number(text)
     if not 0 <= value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be 0 or a positive, finite number, got {text!r}")
     return value
