@@ -19,6 +19,7 @@ import torch
 from hdrcam.errors import InputError
 from hdrcam.optics.psf_file import unit_sum_psf
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
+from hdrcam.recon.highlight_placement import place_highlights as place_highlight_light
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
 from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.mirror_agreement import mirror_agreed, mirrored_region, psf_mirror
@@ -45,6 +46,7 @@ class Reconstruction:
     tiles: TileReport
     consistency: ConsistencyReport
     streak_fit: str  # the optional streak fit's summary, or "off"
+    placement: str = "off"  # the optional highlight placement's summary, or "off"
 
     @property
     def fallback_fraction(self) -> float:
@@ -54,7 +56,8 @@ class Reconstruction:
 
 def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None, noise: NoiseModel | None = None,
                 adaptive: bool = True, tile_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
-                streak_fit: bool = False, mirror_check: bool = True, device: torch.device | str = "cpu",
+                streak_fit: bool = False, place_highlights: bool = False, mirror_check: bool = True,
+                device: torch.device | str = "cpu",
                 dtype: torch.dtype = torch.float32, progress=None, regions=None, partner="auto") -> Reconstruction:
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
@@ -80,8 +83,12 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     a given partner is an InputError); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
-    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). A frame clipped in every channel of
-    every pixel records nothing to reconstruct from: InputError (hdrcam.recon.tiling.refuse_all_clipped).
+    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With ``place_highlights`` (off by
+    default, for measuring: it also harms photographs without a sun; hdrcam.recon.highlight_placement), light is
+    then added where the streaks say a blob's light sits (a sun inside its glow) and the judge vets the result
+    again, so the confidence map and the report are the second judge's. A frame
+    clipped in every channel of every pixel records nothing to reconstruct from: InputError
+    (hdrcam.recon.tiling.refuse_all_clipped).
     """
     for name, value, reader in (("frame", frame, "hdrcam.io.ldr_frame.read_ldr_frame(path)"),
                                 ("model", model, "hdrcam.load_network_model(path)"),
@@ -146,8 +153,17 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
             estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
             fit_summary = fit.summary()
         consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
-    hdr = subtract_highlight_spill(frame, consistent, psf, clipped_mask(frame))
-    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary)
+    clipped = clipped_mask(frame)
+    hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
+    placement_summary = "off"
+    if place_highlights:
+        proposal, placement = place_highlight_light(frame, hdr, psf, noise=noise)
+        placement_summary = placement.summary()
+        if placement.placed_px:
+            consistent, confidence, report = make_consistent(frame, np.where(clipped[..., None], proposal, hdr), psf,
+                                                             noise=noise)
+            hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
+    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary, placement_summary)
 
 
 def checked_device(device: torch.device | str, dtype: torch.dtype) -> torch.device:

@@ -545,7 +545,7 @@ def _train(out: str | Path, new_run: dict, given: dict, *, resume: bool, vgg_wei
 
 def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None, *, data: str = "procedural",
              size_px: int = 512, count: int = 16, seed: int = 0, psf: str | Path | None = None,
-             vgg_weights: str | Path | None = None,
+             vgg_weights: str | Path | None = None, place_highlights: bool = False,
              progress=None) -> tuple[list["ScoredImage"], list["Example"]]:
     """Score checkpoints (label -> checkpoint path; None = the shipped one) on a fixed test set.
 
@@ -553,7 +553,8 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
     a ``size_px`` crop scaled so 1.5 % of its pixels exceed 1, captured through each checkpoint's PSF (or
     ``psf``) with noise seed ``seed``, reconstructed by :func:`hdrcam.reconstruct` (with each checkpoint's
     partner NAME-partner.pt where it has one, as ``reconstruct`` does) and scored: linear PSNR
-    (peak 2^8, dB), PU21 PSNR and PSNR-mu. ``progress``: a tqdm-like object (``update()``) per image. Returns
+    (peak 2^8, dB), PU21 PSNR and PSNR-mu. ``place_highlights``: reconstruct's option of that name.
+    ``progress``: a tqdm-like object (``update()``) per image. Returns
     the scored rows (also ``ldr`` and ``hdrcnn-blend``) and three examples (images).
     """
     from hdrcam.data.scenes import SceneSource
@@ -572,4 +573,4 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
     source = SceneSource(data, lenient=True)
     count = count if source.folder is None else len(source.folder)
     return evaluate_models(models, source, size_px=size_px, count=count, psf=load_psf(Path(psf)) if psf else None,
-                           seed=seed, progress=progress)
+                           seed=seed, place_highlights=place_highlights, progress=progress)

@@ -25,6 +25,8 @@ def register(commands) -> None:
     parser.add_argument("--seed", type=random_seed, default=0, help="noise seed of the captures")
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="score reconstruct's one-pass option (no mirror-image second opinion)")
+    parser.add_argument("--place-highlights", action="store_true",
+                        help="score reconstruct --place-highlights (light placed where the streaks point)")
     partners = parser.add_mutually_exclusive_group()
     partners.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
                           help="score reconstruct --partner: every checkpoint with this second network (default: "
@@ -105,6 +107,7 @@ def run(arguments: argparse.Namespace) -> int:
     with tqdm(total=count, desc="evaluate", unit="image") as progress:
         rows, examples = evaluate_models(models, source, size_px=arguments.size, count=count, psf=psf,
                                          seed=arguments.seed, mirror_check=arguments.mirror_check,
+                                         place_highlights=arguments.place_highlights,
                                          partner=partners, progress=progress, unscored=unscored)
     if not rows:
         shown = 3  # of the reasons: one line, however many photographs

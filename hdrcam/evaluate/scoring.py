@@ -63,10 +63,11 @@ def check_test_crop(size_px: int) -> None:
 
 def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, size_px: int, count: int,
                     psf: np.ndarray | None = None, seed: int = 0, examples: int = 3, mirror_check: bool = True,
+                    place_highlights: bool = False,
                     partner="auto", progress=None, unscored: list[tuple[str, str]] | None = None
                     ) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
-    ``mirror_check``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
+    ``mirror_check``, ``place_highlights``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
     model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
     missing: none). A scene the protocol cannot scale is left out with a warning, and appended to ``unscored``
     (where given) as (name, reason)."""
@@ -100,6 +101,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                 ldr, _ = capture(local, torch.Generator().manual_seed(seed * 100_003 + scene_seed))
             frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
             result = reconstruct(frame, model, psf=capture_psfs[label], mirror_check=mirror_check,
+                                 place_highlights=place_highlights,
                                  partner=partners[label])
             if label == first:
                 outputs["ldr"] = frame
