@@ -29,13 +29,19 @@ exactly at each step. J is mirrored across the frame's border before it is re-im
 received from outside the frame is otherwise missing from P * J and reads as streaks (a 24 % spread PSF near a
 0.5 sky: 0.1 per pixel).
 
+A cluster whose glow exceeds MAX_GLOW gets no excess: there the estimate lacks the blob's own light, and the
+sparse part turns that and the texture around it into spikes (Table 2 rank-1 on the training photographs,
+fitted glow of the harmed ones 3.0-43, of the four sun photographs it helps most 0-4.2; a synthetic 3 x 3 sun in
+a small glow fits 1.2).
+
 The result is a proposal, not an answer: the frame's judge (hdrcam.recon.consistency) vets it as it vets a
 network's, and a misplaced or overbright excess is lowered or dropped there - but not always. Measured on the
-training photographs (tools/results/placement/README.md): before the glow term it placed suns to within a few
-pixels (+6 to +14 dB on four photographs with a sun through the A7 rank-1 DOE; not re-measured with the term)
-and put spikes into blobs that hold no sun (down to -18 dB); with the term, the three interiors barely above
-white re-measured still lose 1.5-5.2 dB. It is therefore off by default: an option of reconstruct and
-evaluate for measuring, not yet a step users get.
+35 training photographs (tools/results/placement/README.md; GUARD_PX 8, the gate applied to each photograph's
+fit): through the Table 2 rank-1 DOE the gated placement changes the mean gain by +0.79 dB (kloppenheim_05
++10.6, narrow_moonlit_road +10.9, noon_grass +8.6 dB; photo_studio_01's lamp, glow 4.2, is gated) but still
+costs studio_small_08 1.6 dB; through the shipped DOE it costs 1.17 dB on average (an overcast sky 28 dB at a
+glow of 0). It is therefore off by default: an option of
+reconstruct and evaluate for measuring, not yet a step users get.
 
 Only what the frame needs is modelled: each cluster of clipped pixels (hdrcam.recon.tiling.clipped_clusters
 with twice the PSF radius, A's reach) is fitted in its own crop, grown by a further PSF radius for P * J.
@@ -59,7 +65,9 @@ SPARSITY = 0.05  # lambda as a share of the largest gradient entry at d = 0
 ITERATIONS = 200
 POWER_ITERATIONS = 20
 LIPSCHITZ_MARGIN = 1.1
-GUARD_PX = 2  # unclipped pixels this close to a clipped one are left out of the fit
+GUARD_PX = 8  # unclipped pixels this close to a clipped one are left out of the fit (their residual is the
+# network's edge and the lens core's more than the streaks': 2 px cost brown_photostudio_06 -5.2 dB against -1.9)
+MAX_GLOW = 2.0  # relative radiance: a cluster whose fitted glow exceeds it gets no excess (module docstring)
 MIN_CURVATURE = 1e-3  # of A^T W A (1 / relative radiance^2): below it the PSF shows the support's light nowhere
 # (a lens without a DOE: A d is FFT round-off, ~1e-9; the A7 rank-1 DOE on a sun's blob: 0.3-30)
 
@@ -68,7 +76,7 @@ MIN_CURVATURE = 1e-3  # of A^T W A (1 / relative radiance^2): below it the PSF s
 class PlacementReport:
     clusters: int  # clusters holding pixels clipped in every channel (the fit's candidates)
     placed_px: int  # pixels given more than 1 (relative radiance) of excess
-    placed_light: float  # sum of the excess over all pixels and the three channels' mean (relative radiance x px)
+    placed_light: float  # the excess map summed (the same in each channel; relative radiance x px)
     seconds: float
 
     def summary(self) -> str:
@@ -159,6 +167,8 @@ def _fit_cluster(frame: np.ndarray, estimate: np.ndarray, clipped: np.ndarray, c
         next_weight = (1.0 + (1.0 + 4.0 * step_weight ** 2) ** 0.5) / 2.0
         momentum = following + (step_weight - 1.0) / next_weight * (following - excess)
         excess, step_weight = following, next_weight
+    if glow > MAX_GLOW:
+        return np.zeros(support.shape, np.float32)  # the blob's own missing light, not a point's: no evidence
     return excess.numpy()
 
 

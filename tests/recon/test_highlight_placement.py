@@ -11,14 +11,14 @@ from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.tiling import clipped_mask
 from hdrcam.sensor import fft_convolve
 
-SIZE = 128
-SUN_YX = (60, 69)  # off the glow's centre: where the glow is deepest is not where the sun is
-GLOW_YX = (64, 64)
+SIZE = 160
+SUN_YX = (76, 85)  # off the glow's centre: where the glow is deepest is not where the sun is
+GLOW_YX = (80, 80)
 
 
 def psf_star() -> np.ndarray:
-    """An 8-point star, 80 % in the centre, rays of 20 px: long streaks, as the A7 rank-1 DOE's."""
-    return star(41, points=8, centre_fraction=0.8, length_px=20).astype(np.float32)
+    """An 8-point star, 80 % in the centre, rays of 40 px: long streaks, as the A7 rank-1 DOE's."""
+    return star(81, points=8, centre_fraction=0.8, length_px=40).astype(np.float32)
 
 
 def convolve(radiance: np.ndarray, psf: np.ndarray) -> np.ndarray:
