@@ -29,10 +29,16 @@ exactly at each step. J is mirrored across the frame's border before it is re-im
 received from outside the frame is otherwise missing from P * J and reads as streaks (a 24 % spread PSF near a
 0.5 sky: 0.1 per pixel).
 
-A cluster whose glow exceeds MAX_GLOW gets no excess: there the estimate lacks the blob's own light, and the
-sparse part turns that and the texture around it into spikes (Table 2 rank-1 on the training photographs,
-fitted glow of the harmed ones 3.0-43, of the four sun photographs it helps most 0-4.2; a synthetic 3 x 3 sun in
-a small glow fits 1.2).
+Three gates keep the fit to what it can tell. A PSF with less than MIN_FAR_SHARE of its light (weakest channel)
+beyond TEXTURE_RING_PX from its centre is not fitted at all: its streaks end inside the ring around a blob where
+the blob's own glow and the scene's edge dominate (the shipped `simulated` DOE: 0 %, Table 2's Dirac and
+dual-peak 0.11 %; rank-1 1.5 %, star 1.4 %, free-form 3.1 %). A cluster whose residual on the ring (the pixels of
+W within TEXTURE_RING_PX of its clipped pixels) exceeds MAX_RING_CHI2 per pixel and channel is left alone: the
+scene's texture, which J's unclipped pixels (the frame less the spill, not the deconvolved scene) leave in the
+residual, is there larger than the streaks (Table 2 rank-1 on the training photographs: 0.6-2.4 around the four
+suns it places best, 5.7-31 around the photographs it harmed, but 0.85 around an overcast sky). A cluster whose
+fitted glow exceeds MAX_GLOW gets no excess: the estimate lacks the blob's own light there, and the sparse part
+turns it into spikes (the overcast sky: 3.0; the suns: 0; a synthetic 3 x 3 sun in a 10 px glow: 1.2).
 
 The result is a proposal, not an answer: the frame's judge (hdrcam.recon.consistency) vets it as it vets a
 network's, and a misplaced or overbright excess is lowered or dropped there - but not always. Measured on the
@@ -68,8 +74,11 @@ LIPSCHITZ_MARGIN = 1.1
 GUARD_PX = 8  # unclipped pixels this close to a clipped one are left out of the fit (their residual is the
 # network's edge and the lens core's more than the streaks': 2 px cost brown_photostudio_06 -5.2 dB against -1.9)
 MAX_GLOW = 2.0  # relative radiance: a cluster whose fitted glow exceeds it gets no excess (module docstring)
+TEXTURE_RING_PX = 48  # the ring beyond GUARD_PX, this far from the cluster's clipped pixels, whose residual is judged
+MAX_RING_CHI2 = 3.0  # per pixel and channel: above it the scene's texture, not noise, fills the residual
+MIN_FAR_SHARE = 0.005  # of the PSF's light beyond TEXTURE_RING_PX (its weakest channel), below which nothing runs
 MIN_CURVATURE = 1e-3  # of A^T W A (1 / relative radiance^2): below it the PSF shows the support's light nowhere
-# (a lens without a DOE: A d is FFT round-off, ~1e-9; the A7 rank-1 DOE on a sun's blob: 0.3-30)
+# W sees (A d is FFT round-off there, ~1e-9; the A7 rank-1 DOE on a sun's blob: 0.3-30)
 
 
 @dataclasses.dataclass
@@ -78,8 +87,12 @@ class PlacementReport:
     placed_px: int  # pixels given more than 1 (relative radiance) of excess
     placed_light: float  # the excess map summed (the same in each channel; relative radiance x px)
     seconds: float
+    far_share: float  # of the PSF's light beyond TEXTURE_RING_PX (weakest channel)
 
     def summary(self) -> str:
+        if self.far_share < MIN_FAR_SHARE:
+            return (f"highlight placement: not run, the PSF puts {100 * self.far_share:.2f} % of its light beyond "
+                    f"{TEXTURE_RING_PX} px (at least {100 * MIN_FAR_SHARE:.1f} % needed)")
         if not self.clusters:
             return "highlight placement: no pixel clipped in every channel"
         return (f"highlight placement: {self.placed_px} px given {self.placed_light:.0f} of light (before the "
@@ -96,6 +109,9 @@ def place_highlights(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *
     proposal = np.array(estimate, np.float32, copy=True)
     clipped = clipped_mask(frame)
     every = np.min(frame, axis=-1) >= CLIP_LEVEL
+    share = far_share(psf)
+    if share < MIN_FAR_SHARE:  # streaks that end inside the ring cannot be told from the glow
+        return proposal, PlacementReport(0, 0, 0.0, time.perf_counter() - started, share)
     radius = psf.shape[-1] // 2
     kernel = torch.from_numpy(np.ascontiguousarray(psf, np.float32))
     clusters = placed_px = 0
@@ -109,7 +125,15 @@ def place_highlights(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *
         proposal[crop] = np.minimum(proposal[crop] + excess[..., None], HIGHLIGHT_PEAK)
         placed_px += int(np.count_nonzero(excess > 1.0))
         placed_light += float(excess.sum())
-    return proposal, PlacementReport(clusters, placed_px, placed_light, time.perf_counter() - started)
+    return proposal, PlacementReport(clusters, placed_px, placed_light, time.perf_counter() - started, share)
+
+
+def far_share(psf: np.ndarray) -> float:
+    """The share of the (3, k, k) PSF's light beyond TEXTURE_RING_PX from its centre, in its weakest channel."""
+    rows, columns = np.mgrid[:psf.shape[-2], :psf.shape[-1]]
+    far = np.hypot(rows - psf.shape[-2] // 2, columns - psf.shape[-1] // 2) > TEXTURE_RING_PX
+    totals = psf.reshape(psf.shape[0], -1).sum(axis=1)
+    return float(np.min(psf[:, far].sum(axis=1) / np.where(totals > 0, totals, 1.0)))
 
 
 def _fit_cluster(frame: np.ndarray, estimate: np.ndarray, clipped: np.ndarray, crop: tuple[slice, slice],
@@ -128,10 +152,12 @@ def _fit_cluster(frame: np.ndarray, estimate: np.ndarray, clipped: np.ndarray, c
     observed = _planes(frame[crop])
     residual = observed - reimaged
     unclipped = torch.from_numpy(~clipped[crop]).to(torch.float32)
-    square = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2)
-    near = cv2.dilate(clipped[crop].astype(np.uint8), square)
+    near = cv2.dilate(clipped[crop].astype(np.uint8), _square(GUARD_PX))
     sigma = torch.from_numpy(noise.sigma(frame[crop]).astype(np.float32).transpose(2, 0, 1))
     weight = torch.from_numpy(near == 0).to(torch.float32) / sigma ** 2
+    ring = (near == 0) & (cv2.dilate(clipped[crop].astype(np.uint8), _square(TEXTURE_RING_PX)) > 0)
+    if not ring.any() or float((weight * residual ** 2)[:, torch.from_numpy(ring)].mean()) > MAX_RING_CHI2:
+        return np.zeros(support.shape, np.float32)  # textured surround (or none seen): streaks not told apart
     inside = torch.from_numpy(support).to(torch.float32)
     ceiling = torch.from_numpy((HIGHLIGHT_PEAK - estimate[crop].max(axis=-1)).clip(0.0, None).astype(np.float32))
     shape = fft_shape(tuple(support.shape), tuple(kernel.shape[-2:]))
@@ -183,6 +209,10 @@ def _lipschitz(forward, adjoint, weight: torch.Tensor, inside: torch.Tensor) -> 
             return 0.0
         vector = vector / largest
     return LIPSCHITZ_MARGIN * largest
+
+
+def _square(reach_px: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach_px + 1,) * 2)
 
 
 def _mirror_pad(image: np.ndarray, pads: tuple) -> np.ndarray:

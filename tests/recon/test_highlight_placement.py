@@ -11,14 +11,14 @@ from hdrcam.recon.highlight_spill import subtract_highlight_spill
 from hdrcam.recon.tiling import clipped_mask
 from hdrcam.sensor import fft_convolve
 
-SIZE = 160
-SUN_YX = (76, 85)  # off the glow's centre: where the glow is deepest is not where the sun is
-GLOW_YX = (80, 80)
+SIZE = 224
+SUN_YX = (108, 117)  # off the glow's centre: where the glow is deepest is not where the sun is
+GLOW_YX = (112, 112)
 
 
 def psf_star() -> np.ndarray:
-    """An 8-point star, 80 % in the centre, rays of 40 px: long streaks, as the A7 rank-1 DOE's."""
-    return star(81, points=8, centre_fraction=0.8, length_px=40).astype(np.float32)
+    """An 8-point star, 80 % in the centre, rays of 80 px: long streaks, as the A7 rank-1 DOE's."""
+    return star(161, points=8, centre_fraction=0.8, length_px=80).astype(np.float32)
 
 
 def convolve(radiance: np.ndarray, psf: np.ndarray) -> np.ndarray:
@@ -64,7 +64,24 @@ def test_a_sun_inside_its_glow_is_placed_where_its_streaks_point_with_its_light(
 
 def test_a_lens_without_streaks_places_nothing():
     truth, sun = sun_scene()
-    psf = dirac(41).astype(np.float32)
+    psf = dirac(161).astype(np.float32)
+    frame = np.clip(convolve(truth, psf), 0.0, 1.0)
+    estimate = estimate_without_the_sun(frame, truth, sun, psf)
+    proposal, report = place_highlights(frame, estimate, psf)
+    assert report.clusters == 0 and report.placed_px == 0 and "not run" in report.summary()  # no far light
+    np.testing.assert_array_equal(proposal, estimate)
+
+
+def test_a_textured_surround_places_nothing():
+    """Around the same sun, a 0.1 / 0.7 checkerboard of 3 px cells instead of a smooth sky: the estimate's
+    unclipped pixels (the frame less the spill) are not the scene, the residual they leave is texture several times
+    the noise, and the fit would mistake it for streaks: the gates leave the cluster alone (with neither the ring
+    test nor the glow gate, 155 px got 11 x the sun's light)."""
+    truth, sun = sun_scene()
+    y, x = np.mgrid[:SIZE, :SIZE]
+    sky = truth[..., 0] == 0.4
+    truth[sky] = np.where(((y // 3 + x // 3) % 2 == 0)[sky], 0.1, 0.7)[:, None]
+    psf = psf_star()
     frame = np.clip(convolve(truth, psf), 0.0, 1.0)
     estimate = estimate_without_the_sun(frame, truth, sun, psf)
     proposal, report = place_highlights(frame, estimate, psf)
