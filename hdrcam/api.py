@@ -84,8 +84,8 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
     exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
     less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With ``place_highlights`` (off by
-    default, for measuring: it also harms photographs without a sun; hdrcam.recon.highlight_placement), light is
-    then added where the streaks say a blob's light sits (a sun inside its glow) and the judge vets the result
+    default: on the validation photographs it changed nothing yet; hdrcam.recon.highlight_placement), light is
+    then added where long streaks say a blob's light sits (a sun inside its glow) and the judge vets the result
     again, so the confidence map and the report are the second judge's. A frame
     clipped in every channel of every pixel records nothing to reconstruct from: InputError
     (hdrcam.recon.tiling.refuse_all_clipped).

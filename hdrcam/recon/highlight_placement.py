@@ -41,13 +41,10 @@ fitted glow exceeds MAX_GLOW gets no excess: the estimate lacks the blob's own l
 turns it into spikes (the overcast sky: 3.0; the suns: 0; a synthetic 3 x 3 sun in a 10 px glow: 1.2).
 
 The result is a proposal, not an answer: the frame's judge (hdrcam.recon.consistency) vets it as it vets a
-network's, and a misplaced or overbright excess is lowered or dropped there - but not always. Measured on the
-35 training photographs (tools/results/placement/README.md; GUARD_PX 8, the gate applied to each photograph's
-fit): through the Table 2 rank-1 DOE the gated placement changes the mean gain by +0.79 dB (kloppenheim_05
-+10.6, narrow_moonlit_road +10.9, noon_grass +8.6 dB; photo_studio_01's lamp, glow 4.2, is gated) but still
-costs studio_small_08 1.6 dB; through the shipped DOE it costs 1.17 dB on average (an overcast sky 28 dB at a
-glow of 0). It is therefore off by default: an option of
-reconstruct and evaluate for measuring, not yet a step users get.
+network's. Measured (tools/results/placement/README.md): on the 35 training photographs through Table 2's rank-1
+DOE it lifts kloppenheim_05, narrow_moonlit_road and noon_grass by 8.6-10.9 dB and moves nothing else; on the
+validation split and the night scenes it changes nothing (every validation sun sits in a ring of 7.5-38 chi^2
+per pixel, above MAX_RING_CHI2). It is therefore off by default: an option of reconstruct and evaluate.
 
 Only what the frame needs is modelled: each cluster of clipped pixels (hdrcam.recon.tiling.clipped_clusters
 with twice the PSF radius, A's reach) is fitted in its own crop, grown by a further PSF radius for P * J.
