@@ -26,7 +26,7 @@ def register(commands) -> None:
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="score reconstruct's one-pass option (no mirror-image second opinion)")
     parser.add_argument("--place-highlights", action="store_true",
-                        help="score reconstruct --place-highlights (light placed where the streaks point)")
+                        help="score reconstruct --place-highlights (light placed where long streaks point)")
     partners = parser.add_mutually_exclusive_group()
     partners.add_argument("--partner", type=Path, default=None, metavar="CHECKPOINT",
                           help="score reconstruct --partner: every checkpoint with this second network (default: "

@@ -46,6 +46,9 @@ def register(commands) -> None:
     parser.add_argument("--no-mirror-check", dest="mirror_check", action="store_false",
                         help="one network pass instead of two (the frame and its mirror image, keeping only what "
                              "both paint): half the network time, more invented highlights (see README)")
+    parser.add_argument("--place-highlights", action="store_true",
+                        help="add light where long streaks say a clipped blob's light sits (a sun inside its glow), "
+                             "vetted by the frame's judge; runs only for PSFs with streaks past 48 px (see README)")
     parser.add_argument("--tile", type=int_at_least(MIN_TILE_PX), default=DEFAULT_CORE_PX, metavar="PX",
                         help=f"largest tile core, at least {MIN_TILE_PX} (default {DEFAULT_CORE_PX}; bounds memory, "
                              "and changes the result: the networks normalise each window by its own statistics; "
@@ -111,6 +114,7 @@ def run(arguments: argparse.Namespace) -> int:
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
                              mirror_check=arguments.mirror_check, partner=partner,
+                             place_highlights=arguments.place_highlights,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
         with tqdm.external_write_mode(file=sys.stderr):  # lines of their own, not run on from the progress bar
@@ -139,7 +143,8 @@ def run(arguments: argparse.Namespace) -> int:
         print(json.dumps({"input": str(source), "hdr": str(exr_path), "preview": str(png_path),
                           "confidence": str(confidence_path), "size": list(frame.shape[:2]),
                           "seconds": round(time.perf_counter() - started, 2), "work": result.tiles.summary(),
-                          "streak_fit": result.streak_fit, "consistency": result.consistency.summary(),
+                          "streak_fit": result.streak_fit, "placement": result.placement,
+                          "consistency": result.consistency.summary(),
                           "fallback_fraction": round(result.fallback_fraction, 4),
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     progress.close()

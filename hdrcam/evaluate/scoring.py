@@ -67,8 +67,8 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
                     partner="auto", progress=None, unscored: list[tuple[str, str]] | None = None
                     ) -> tuple[list[ScoredImage], list[Example]]:
     """Score every model (label -> model) on the test set; ``psf`` overrides the checkpoints' PSFs;
-    ``mirror_check``, ``place_highlights``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names ("auto": each
-    model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
+    ``mirror_check``, ``place_highlights``, ``partner``: :func:`hdrcam.api.reconstruct`'s options of those names
+    ("auto": each model's own partner checkpoint, where it has one), or for ``partner`` a dict label -> partner (a label
     missing: none). A scene the protocol cannot scale is left out with a warning, and appended to ``unscored``
     (where given) as (name, reason)."""
     partners = {label: resolve_partner(model, partner.get(label) if isinstance(partner, dict) else partner)

@@ -129,6 +129,17 @@ def test_reconstruct_without_the_mirror_check_runs_one_pass_per_network(night_fr
     assert np.isfinite(result.rgb()).all() and result.attributes["partner"] == "none"
 
 
+def test_reconstruct_places_highlights_only_on_request_and_says_why_not(night_frame, tmp_path, capsys):
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / "plain")]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["placement"] == "off"
+    assert main(["reconstruct", str(night_frame / "frame.exr"), "--out", str(tmp_path / "placed"),
+                 "--place-highlights"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report["placement"].startswith("highlight placement: not run")  # the shipped DOE's streaks end at 44 px
+    np.testing.assert_array_equal(read_exr(tmp_path / "placed" / "frame.exr").rgb(),
+                                  read_exr(tmp_path / "plain" / "frame.exr").rgb())
+
+
 def test_reconstruct_reads_16_bit_tiff(tmp_path):
     frame = (np.random.default_rng(0).random((40, 50, 3)) * 0.5 * 65535).astype(np.uint16)
     frame[10, 10] = 65535
