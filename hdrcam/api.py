@@ -145,15 +145,15 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         tiles = tiles.with_pass(report)
     noise = noise or profile_noise(model)
     fit_summary = "off"
+    clipped = clipped_mask(frame)
     if partner is not None:
         network_hdr, consistent, confidence, report = judge_pair(frame, *proposals, psf, noise=noise)
     else:
         network_hdr = estimate = proposals[0]
         if streak_fit:
-            estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped_mask(frame))
+            estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped)
             fit_summary = fit.summary()
         consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
-    clipped = clipped_mask(frame)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
     placement_summary = "off"
     if place_highlights:

@@ -554,8 +554,8 @@ def evaluate_checkpoints(checkpoints: dict[str, str | Path | None] | None = None
     ``psf``) with noise seed ``seed``, reconstructed by :func:`hdrcam.reconstruct` (with each checkpoint's
     partner NAME-partner.pt where it has one, as ``reconstruct`` does) and scored: linear PSNR
     (peak 2^8, dB), PU21 PSNR and PSNR-mu. ``place_highlights``: reconstruct's option of that name.
-    ``progress``: a tqdm-like object (``update()``) per image. Returns
-    the scored rows (also ``ldr`` and ``hdrcnn-blend``) and three examples (images).
+    ``progress``: a tqdm-like object (``update()``) per image. Returns the scored rows (also ``ldr`` and
+    ``hdrcnn-blend``) and three examples (images).
     """
     from hdrcam.data.scenes import SceneSource
     from hdrcam.errors import InputError

@@ -55,13 +55,12 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import cv2
 import numpy as np
 import torch
 
 from hdrcam.recon.consistency import NoiseModel
 from hdrcam.recon.stages import HIGHLIGHT_PEAK
-from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters, clipped_mask
+from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters, clipped_mask, within_px
 from hdrcam.sensor import fft_convolve, fft_shape, psf_spectrum
 
 SPARSITY = 0.05  # lambda as a share of the largest gradient entry at d = 0
@@ -149,10 +148,10 @@ def _fit_cluster(frame: np.ndarray, estimate: np.ndarray, clipped: np.ndarray, c
     observed = _planes(frame[crop])
     residual = observed - reimaged
     unclipped = torch.from_numpy(~clipped[crop]).to(torch.float32)
-    near = cv2.dilate(clipped[crop].astype(np.uint8), _square(GUARD_PX))
+    near = within_px(clipped[crop], GUARD_PX)
     sigma = torch.from_numpy(noise.sigma(frame[crop]).astype(np.float32).transpose(2, 0, 1))
-    weight = torch.from_numpy(near == 0).to(torch.float32) / sigma ** 2
-    ring = (near == 0) & (cv2.dilate(clipped[crop].astype(np.uint8), _square(TEXTURE_RING_PX)) > 0)
+    weight = torch.from_numpy(~near).to(torch.float32) / sigma ** 2
+    ring = ~near & within_px(clipped[crop], TEXTURE_RING_PX)
     if not ring.any() or float((weight * residual ** 2)[:, torch.from_numpy(ring)].mean()) > MAX_RING_CHI2:
         return np.zeros(support.shape, np.float32)  # textured surround (or none seen): streaks not told apart
     inside = torch.from_numpy(support).to(torch.float32)
@@ -206,10 +205,6 @@ def _lipschitz(forward, adjoint, weight: torch.Tensor, inside: torch.Tensor) -> 
             return 0.0
         vector = vector / largest
     return LIPSCHITZ_MARGIN * largest
-
-
-def _square(reach_px: int) -> np.ndarray:
-    return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach_px + 1,) * 2)
 
 
 def _mirror_pad(image: np.ndarray, pads: tuple) -> np.ndarray:

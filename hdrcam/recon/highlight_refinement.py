@@ -45,7 +45,7 @@ import torch
 
 from hdrcam.recon.blob_amplitudes import blob_sums, fit_blob_amplitudes, hessian_row_sums
 from hdrcam.recon.stages import HIGHLIGHT_PEAK
-from hdrcam.recon.tiling import clipped_clusters
+from hdrcam.recon.tiling import clipped_clusters, within_px
 from hdrcam.sensor import fft_convolve
 
 DEFAULT_ITERATIONS = 10
@@ -104,8 +104,7 @@ def _refine_crop(ldr: np.ndarray, hdr: np.ndarray, clipped: np.ndarray, own: np.
     frame = torch.from_numpy(np.ascontiguousarray(ldr.transpose(2, 0, 1), np.float32))
     estimate = torch.from_numpy(np.ascontiguousarray(hdr.transpose(2, 0, 1), np.float32))
     inside = torch.from_numpy(own)
-    near = cv2.dilate(clipped.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_RECT, (2 * GUARD_PX + 1,) * 2))
-    unclipped = torch.from_numpy(near == 0).to(torch.float32)
+    unclipped = torch.from_numpy(~within_px(clipped, GUARD_PX)).to(torch.float32)
     index = torch.from_numpy(labels.astype(np.int64)).reshape(-1)
     excess = (estimate - 1.0).clamp(min=0.0) * inside
     base = estimate - excess

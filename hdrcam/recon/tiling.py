@@ -97,6 +97,12 @@ def clipped_mask(ldr: np.ndarray, level: float = CLIP_LEVEL) -> np.ndarray:
     return np.maximum.reduce([ldr[..., channel] for channel in range(ldr.shape[-1])]) >= level
 
 
+def within_px(mask: np.ndarray, reach_px: int) -> np.ndarray:
+    """H x W bool: the pixels within ``reach_px`` of a True pixel of ``mask`` in x and y (a square's reach)."""
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach_px + 1,) * 2)
+    return cv2.dilate(mask.astype(np.uint8), square) > 0
+
+
 def refuse_all_clipped(frame: np.ndarray, name: str = "the frame") -> None:
     """InputError when every sample of an H x W x 3 ``frame`` reached CLIP_LEVEL: an all-white frame records
     neither the scene nor a streak of its highlights, so nothing can be recovered from it (the sensor was
@@ -159,7 +165,7 @@ def plan_regions(ldr: np.ndarray, *, psf_radius_px: int, adaptive: bool = True, 
     reach = psf_radius_px + _blend(core_px, halo_px)
     distance_px = cv2.distanceTransform((~clipped).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     near = (distance_px <= reach).astype(np.uint8)
-    context = cv2.dilate(near, cv2.getStructuringElement(cv2.MORPH_RECT, (2 * halo_px + 1,) * 2))
+    context = within_px(near, halo_px).astype(np.uint8)
     _, groups = cv2.connectedComponents(context, connectivity=8)
     return [_region(rows.start, columns.start, rows.stop - rows.start, columns.stop - columns.start, core_px, halo_px)
             for rows, columns in scipy.ndimage.find_objects(groups * near)]
