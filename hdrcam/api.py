@@ -160,8 +160,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         proposal, placement = place_highlight_light(frame, hdr, psf, noise=noise)
         placement_summary = placement.summary()
         if placement.placed_px:
-            consistent, confidence, report = make_consistent(frame, np.where(clipped[..., None], proposal, hdr), psf,
-                                                             noise=noise)
+            consistent, confidence, report = make_consistent(frame, proposal, psf, noise=noise)  # hdr + the excess
             hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
     return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary, placement_summary)
 
