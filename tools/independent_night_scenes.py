@@ -360,7 +360,8 @@ def world_noise(S, X, Z, dX, dZ, scale_m=6.0):
     ix, iy = np.minimum(mx.astype(np.int64), 255), np.minimum(my.astype(np.int64), 255)
     fx, fy = mx - ix, my - iy
     t = S._wtile
-    v = (t[iy, ix] * (1 - fx) + t[iy, ix + 1] * fx) * (1 - fy) + (t[iy + 1, ix] * (1 - fx) + t[iy + 1, ix + 1] * fx) * fy
+    v = ((t[iy, ix] * (1 - fx) + t[iy, ix + 1] * fx) * (1 - fy)
+         + (t[iy + 1, ix] * (1 - fx) + t[iy + 1, ix + 1] * fx) * fy)
     fade = np.clip(1.5 - np.maximum(dX, dZ) * ppm / 8.0, 0, 1)
     return v * fade
 
@@ -387,7 +388,8 @@ class Screen:
     def __init__(self, rng, face_nid, level, tint):
         self.face, self.level = face_nid, level
         lumi = rng.random((6, 9, 1)).astype(F) ** 1.5
-        hue = 0.75 + 0.25 * rng.random((6, 9, 3)).astype(F) * pick(rng, [col(1, 0.8, 0.6), col(0.6, 0.8, 1), col(0.7, 1, 0.7)])
+        hue = 0.75 + 0.25 * rng.random((6, 9, 3)).astype(F) * pick(
+            rng, [col(1, 0.8, 0.6), col(0.6, 0.8, 1), col(0.7, 1, 0.7)])
         img = cv2.resize(lumi * hue, (90, 60), interpolation=cv2.INTER_CUBIC)
         self.img = np.clip(cv2.GaussianBlur(img, (0, 0), 2), 0.02, 1) * np.asarray(tint, F)
         self.case = col(0.02, 0.02, 0.02)
@@ -453,7 +455,6 @@ class Facade:
 
     def shade(self, S, g):
         sy, sx, nid = g['sy'], g['sx'], g['nid']
-        n = sy.size
         tx = 0.55 * S.texA[sy, sx] + 0.45 * S.texB[sy, sx]
         a = self.alb[None, :] * np.clip(1 + self.tex * tx, 0.25, 2.5)[:, None]
         L = a * self.amb * np.clip(1 + 0.15 * S.texC[sy, sx], 0.5, 1.5)[:, None]
@@ -881,7 +882,6 @@ def paint_sky(S, P):
 
 # ----------------------------------------------------------------------------- street pieces
 def add_street_lamp(S, Xp, Z, Hl, arm, colr, B, I, k, spill, glow, glow_r, halo, halo_r, r_m, style='arm'):
-    rng = S.rng
     pole = Plain(col(0.09, 0.09, 0.1), 0.02, 0.1)
     pw = 0.07
     if Z < 0.5:
@@ -919,7 +919,8 @@ def add_car(S, X, Z, facing, headlights_on=True, lights_B=None, I_head=None):
     z0, z1 = Z, Z + L_
     paint_box(S, (X - wd, 0.28, z0), (X + wd, 0.95, z1), body, K_OBJ)
     paint_box(S, (X - wd + 0.08, 0.95, z0 + 1.1), (X + wd - 0.08, U(rng, 1.38, 1.55), z1 - 0.8), glass, K_OBJ)
-    paint_box(S, (X - wd + 0.05, 0.0, z0 + 0.6), (X + wd - 0.05, 0.3, z1 - 0.6), Plain(col(0.02, 0.02, 0.02), 0.02), K_OBJ)
+    paint_box(S, (X - wd + 0.05, 0.0, z0 + 0.6), (X + wd - 0.05, 0.3, z1 - 0.6),
+              Plain(col(0.02, 0.02, 0.02), 0.02), K_OBJ)
     if not headlights_on:
         return
     if facing < 0:
@@ -1037,12 +1038,11 @@ def setup_post(S, rng):
 # ----------------------------------------------------------------------------- outdoor scenes
 def street_ground_mat(P):
     def mat(S, X, Z, dX, dZ, sy, sx):
-        rng = S.rng
         n = X.size
         rel = X - P['Xc']
         ar = np.abs(rel)
         Rw, Sw = P['Rw'], P['Sw']
-        tA, tB, tC = S.texA[sy, sx], S.texB[sy, sx], S.texC[sy, sx]
+        tA, tB = S.texA[sy, sx], S.texB[sy, sx]
         att = 1.0 / (1.0 + dX * 40)
         road = ar < Rw
         side = (ar >= Rw) & (ar < Rw + Sw)
@@ -1067,7 +1067,8 @@ def street_ground_mat(P):
             xw = interval_cov(Z, dZ, z0, z0 + 4) * box_cov(rel / 1.1, dX / 1.1, 0, 0.5) * (ar < Rw - 0.5) * wear
             ra = ra * (1 - xw[:, None]) + col(0.5, 0.5, 0.48)[None, :] * xw[:, None]
         sa = P['side_alb'] * np.clip(1 + 0.12 * tA + 0.2 * tB * att, 0.3, 2)[:, None]
-        j = np.maximum(box_cov(Z / P['tile'], dZ / P['tile'], 0, 0.03), box_cov(rel / P['tile'], dX / P['tile'], 0, 0.03))
+        j = np.maximum(box_cov(Z / P['tile'], dZ / P['tile'], 0, 0.03),
+                       box_cov(rel / P['tile'], dX / P['tile'], 0, 0.03))
         sa *= (1 - 0.4 * j)[:, None]
         curb = interval_cov(ar, dX, Rw, Rw + 0.18)
         sa = sa * (1 - curb[:, None]) + 0.28 * curb[:, None]
@@ -1128,7 +1129,6 @@ def skyline(S, rng, zmin, zmax, n, xspan, hmin=15, hmax=220, cluster=0.0, base_y
 def hills(S, rng, Z, hmax, colr_amb, lights_n=0):
     """Distant terrain silhouette (1D noise profile) with a few house lights."""
     cam = S.cam
-    xs = np.arange(W)
     prof = fbm(rng, 1, W + 64, U(rng, 80, 250), 4)[0, :W]
     hpx = (prof - prof.min()) / max(np.ptp(prof), 1e-3)
     hm = hmax * (0.3 + 0.7 * hpx)
@@ -1243,8 +1243,10 @@ def build_avenue(rng):
         state = pick(rng, [0, 1, 2])
         for s in (-1, 1):
             xp = Xc + s * (Rw + 0.5)
-            paint_box(S, (xp - 0.06, 0, zt - 0.06), (xp + 0.06, 3.6, zt + 0.06), Plain(col(0.08, 0.08, 0.08), 0.02), K_FIXT)
-            paint_box(S, (xp - 0.18, 3.0, zt + 0.05), (xp + 0.18, 4.1, zt + 0.3), Plain(col(0.03, 0.03, 0.03), 0.02), K_FIXT)
+            paint_box(S, (xp - 0.06, 0, zt - 0.06), (xp + 0.06, 3.6, zt + 0.06),
+                      Plain(col(0.08, 0.08, 0.08), 0.02), K_FIXT)
+            paint_box(S, (xp - 0.18, 3.0, zt + 0.05), (xp + 0.18, 4.1, zt + 0.3),
+                      Plain(col(0.03, 0.03, 0.03), 0.02), K_FIXT)
             for j, c in enumerate([col(1.0, 0.08, 0.03), col(1.0, 0.55, 0.05), col(0.15, 1.0, 0.55)]):
                 on = j == state
                 S.lights.append(Light((xp, 3.9 - j * 0.33, zt), c, B=LU(rng, 30, 300) if on else 0.05,
@@ -1336,7 +1338,7 @@ def build_across(rng):
     S.refl_sx, S.refl_sy = U(rng, 1.2, 4), U(rng, 12, 70)
 
     def gmat(S, X, Z, dX, dZ, sy, sx):
-        tA, tB, tC = S.texA[sy, sx], S.texB[sy, sx], S.texC[sy, sx]
+        tA, tB = S.texA[sy, sx], S.texB[sy, sx]
         att = 1.0 / (1.0 + dX * 40)
         road = (Z >= z_road0) & (Z < z_road1)
         ra = road_alb * np.clip(1 + 0.15 * tA + 0.35 * tB * att, 0.3, 2)[:, None]
@@ -1441,7 +1443,8 @@ def build_across(rng):
             body = Plain(pick(rng, [col(0.5, 0.5, 0.5), col(0.05, 0.05, 0.05), col(0.4, 0.05, 0.04)]), 0.03, 0.1)
             L_ = U(rng, 4, 4.8)
             paint_box(S, (xc, 0.28, zl - 0.9), (xc + L_, 0.95, zl + 0.9), body, K_OBJ)
-            paint_box(S, (xc + 1.0, 0.95, zl - 0.8), (xc + L_ - 1.0, 1.45, zl + 0.8), Plain(col(0.02, 0.02, 0.025), 0.03), K_OBJ)
+            paint_box(S, (xc + 1.0, 0.95, zl - 0.8), (xc + L_ - 1.0, 1.45, zl + 0.8),
+                      Plain(col(0.02, 0.02, 0.025), 0.03), K_OBJ)
             head_right = chance(rng, 0.5)
             xh, xt = (xc + L_ + 0.05, xc - 0.05) if head_right else (xc - 0.05, xc + L_ + 0.05)
             S.lights.append(Light((xh, 0.68, zl - 0.75), col(1.0, 0.96, 0.9), B=LU(rng, 50, 5000), r_m=0.1,
@@ -1550,7 +1553,7 @@ def build_park(rng):
     S.refl_sx, S.refl_sy = U(rng, 1.5, 4), U(rng, 10, 40)
 
     def gmat(S, X, Z, dX, dZ, sy, sx):
-        tA, tB, tC = S.texA[sy, sx], S.texB[sy, sx], S.texC[sy, sx]
+        tA, tB = S.texA[sy, sx], S.texB[sy, sx]
         att = 1.0 / (1.0 + dX * 40)
         d = np.abs(X - pc(Z))
         path = interval_cov(d, dX, -1, pw)
@@ -1600,8 +1603,10 @@ def build_park(rng):
     # benches
     for (xl, zl) in lamp_pos[:4]:
         if chance(rng, 0.5):
-            paint_box(S, (xl + 0.4, 0.4, zl + 0.6), (xl + 0.9, 0.48, zl + 2.3), Plain(col(0.2, 0.12, 0.06), 0.03), K_OBJ)
-            paint_box(S, (xl + 0.85, 0.48, zl + 0.6), (xl + 0.92, 0.9, zl + 2.3), Plain(col(0.2, 0.12, 0.06), 0.03), K_OBJ)
+            paint_box(S, (xl + 0.4, 0.4, zl + 0.6), (xl + 0.9, 0.48, zl + 2.3),
+                      Plain(col(0.2, 0.12, 0.06), 0.03), K_OBJ)
+            paint_box(S, (xl + 0.85, 0.48, zl + 0.6), (xl + 0.92, 0.9, zl + 2.3),
+                      Plain(col(0.2, 0.12, 0.06), 0.03), K_OBJ)
     # trees
     for _ in range(int(U(rng, 12, 45))):
         zt = LU(rng, 4, 150)
@@ -1609,7 +1614,8 @@ def build_park(rng):
         if abs(xt - pc(zt)) < pw + 2:
             continue
         cwid = U(rng, 3, 9)
-        paint_tree(S, xt, zt, U(rng, 1.5, 4), cwid, cwid * U(rng, 0.8, 1.6), pick(rng, ['deciduous', 'deciduous', 'conifer']),
+        paint_tree(S, xt, zt, U(rng, 1.5, 4), cwid, cwid * U(rng, 0.8, 1.6),
+                   pick(rng, ['deciduous', 'deciduous', 'conifer']),
                    col(0.04, 0.07, 0.03) * U(rng, 0.6, 1.5), amb * U(rng, 0.3, 0.8))
     if chance(rng, 0.4):
         zt = U(rng, 2.5, 5)
@@ -1777,7 +1783,8 @@ def build_interior(rng):
         fa_, fv_ = azm * ka - ia, el * kv - iv_
         hw_ = hash01(ia, iv_, osalt)
         win = (hw_ < 0.16) & (fa_ > 0.2) & (fa_ < 0.75) & (fv_ > 0.25) & (fv_ < 0.7) & (el < top - 0.004)
-        bcol = WINDOW_PAL[(hash01(ia, iv_, osalt + 1) * 6).astype(int)] * (0.3 + 2.5 * hash01(ia, iv_, osalt + 2))[:, None]
+        bcol = (WINDOW_PAL[(hash01(ia, iv_, osalt + 1) * 6).astype(int)]
+                * (0.3 + 2.5 * hash01(ia, iv_, osalt + 2))[:, None])
         bval = np.where(win[:, None], bcol, col(0.004, 0.004, 0.005) * (1 + 0.3 * tA[iy, ix])[:, None])
         below = el < -0.01
         gl = hash01(np.floor(azm * 400).astype(np.int64), np.floor(el * 400).astype(np.int64), osalt + 3)
@@ -1786,7 +1793,8 @@ def build_interior(rng):
         outv = np.where(bld[:, None], bval, outv)
         outv = np.where(below[:, None], gval, outv)
         # stars
-        st = (hash01(np.floor(azm * 700).astype(np.int64), np.floor(el * 700).astype(np.int64), osalt + 4) < 0.0015) & ~bld
+        st = (hash01(np.floor(azm * 700).astype(np.int64), np.floor(el * 700).astype(np.int64), osalt + 4)
+              < 0.0015) & ~bld
         outv = outv + st[:, None] * 2.0
         # mullions / frame
         fu = (uu - wu0) / (wu1 - wu0)
@@ -1820,7 +1828,8 @@ def build_interior(rng):
 
     # --- furniture
     def wood():
-        return Plain(pick(rng, [col(0.3, 0.18, 0.09), col(0.15, 0.1, 0.06), col(0.5, 0.4, 0.28), col(0.6, 0.6, 0.58)]), 0.0, 0.15)
+        return Plain(pick(rng, [col(0.3, 0.18, 0.09), col(0.15, 0.1, 0.06), col(0.5, 0.4, 0.28),
+                                col(0.6, 0.6, 0.58)]), 0.0, 0.15)
     boxes = []
 
     def B_(a, b, m, k=K_OBJ):
@@ -1829,7 +1838,8 @@ def build_interior(rng):
     layout = pick(rng, ['living', 'bedroom', 'dining'])
     tops = []   # surfaces for table lamps/candles: (x, y, z)
     if layout == 'living':
-        sc = Plain(pick(rng, [col(0.3, 0.3, 0.32), col(0.5, 0.2, 0.15), col(0.2, 0.3, 0.25), col(0.55, 0.5, 0.42)]), 0.0, 0.2)
+        sc = Plain(pick(rng, [col(0.3, 0.3, 0.32), col(0.5, 0.2, 0.15), col(0.2, 0.3, 0.25),
+                              col(0.55, 0.5, 0.42)]), 0.0, 0.2)
         zc = U(rng, 2.0, D - 1.5)
         B_((-wl, 0, zc - 1.0), (-wl + 0.9, 0.45, zc + 1.0), sc)
         B_((-wl, 0.45, zc - 1.0), (-wl + 0.25, 0.9, zc + 1.0), sc)
@@ -1905,13 +1915,15 @@ def build_interior(rng):
             xx = px_ + (j - (npend - 1) / 2) * 0.6
             yy = Hr - U(rng, 0.5, 1.0)
             shade = chance(rng, 0.5)
-            paint_box(S, (xx - 0.006, yy, pz_ - 0.006), (xx + 0.006, Hr, pz_ + 0.006), Plain(col(0.05, 0.05, 0.05), 0.0), K_FIXT)
+            paint_box(S, (xx - 0.006, yy, pz_ - 0.006), (xx + 0.006, Hr, pz_ + 0.006),
+                      Plain(col(0.05, 0.05, 0.05), 0.0), K_FIXT)
             if shade:
                 paint_box(S, (xx - 0.2, yy + 0.02, pz_ - 0.2), (xx + 0.2, yy + 0.25, pz_ + 0.2),
-                          Plain(pick(rng, [col(0.05, 0.05, 0.05), col(0.6, 0.6, 0.6), col(0.1, 0.2, 0.15)]), 0.0, 0.05), K_FIXT)
+                          Plain(pick(rng, [col(0.05, 0.05, 0.05), col(0.6, 0.6, 0.6), col(0.1, 0.2, 0.15)]),
+                                0.0, 0.05), K_FIXT)
                 S.lights.append(Light((xx, yy, pz_), main_c, I=U(rng, 3, 10), mode='dir', axis=(0, -1, 0), k=1.5,
-                                      spill=0.05, excl=0.3, soft=0.2, B=LU(rng, 300, 3000), r_m=0.04, glow=LU(rng, 0.01, 0.06),
-                                      glow_r=U(rng, 4, 10), ztol=0.05))
+                                      spill=0.05, excl=0.3, soft=0.2, B=LU(rng, 300, 3000), r_m=0.04,
+                                      glow=LU(rng, 0.01, 0.06), glow_r=U(rng, 4, 10), ztol=0.05))
             else:
                 S.lights.append(Light((xx, yy - 0.05, pz_), main_c, I=U(rng, 1.5, 6), mode='iso', excl=0.1, soft=0.2,
                                       B=LU(rng, 300, 3000), r_m=0.045, glow=LU(rng, 0.01, 0.1), glow_r=U(rng, 3, 8),
@@ -1920,8 +1932,8 @@ def build_interior(rng):
     if chance(rng, 0.35):   # recessed downlights
         for j in range(int(rng.integers(2, 6))):
             xx, zz = U(rng, -wl + 0.5, wr - 0.5), U(rng, 1.0, D - 0.5)
-            S.lights.append(Light((xx, Hr - 0.01, zz), INDOOR[pick(rng, lk)], I=U(rng, 1.5, 4), mode='dir', axis=(0, -1, 0),
-                                  k=U(rng, 2, 5), spill=0.0, soft=0.2, B=LU(rng, 300, 3000), r_m=0.04,
+            S.lights.append(Light((xx, Hr - 0.01, zz), INDOOR[pick(rng, lk)], I=U(rng, 1.5, 4), mode='dir',
+                                  axis=(0, -1, 0), k=U(rng, 2, 5), spill=0.0, soft=0.2, B=LU(rng, 300, 3000), r_m=0.04,
                                   glow=LU(rng, 0.005, 0.05), glow_r=U(rng, 3, 8), ztol=0.05))
             nl += 1
     for (tx_, ty_, tz_) in tops:   # table lamps with glowing fabric shade
@@ -1929,17 +1941,19 @@ def build_interior(rng):
             c = INDOOR[pick(rng, ['incandescent', 'halogen', 'warm_led'])]
             sh_e = LU(rng, 0.8, 8)
             hs = U(rng, 0.22, 0.34)
-            paint_box(S, (tx_ - 0.02, ty_, tz_ - 0.02), (tx_ + 0.02, ty_ + 0.3, tz_ + 0.02), Plain(col(0.3, 0.25, 0.2), 0.0), K_FIXT)
+            paint_box(S, (tx_ - 0.02, ty_, tz_ - 0.02), (tx_ + 0.02, ty_ + 0.3, tz_ + 0.02),
+                      Plain(col(0.3, 0.25, 0.2), 0.0), K_FIXT)
             paint_box(S, (tx_ - hs / 2, ty_ + 0.28, tz_ - hs / 2), (tx_ + hs / 2, ty_ + 0.28 + hs * 0.8, tz_ + hs / 2),
                       Plain(col(0, 0, 0), 0.0, 0.0, emit=c * sh_e * col(1.0, 0.95, 0.85)), K_FIXT)
-            S.lights.append(Light((tx_, ty_ + 0.28 + hs * 0.4, tz_), c, I=U(rng, 1.5, 5), mode='updown', k=1.5, spill=0.15,
-                                  excl=0.3, soft=0.2))
+            S.lights.append(Light((tx_, ty_ + 0.28 + hs * 0.4, tz_), c, I=U(rng, 1.5, 5), mode='updown', k=1.5,
+                                  spill=0.15, excl=0.3, soft=0.2))
             nl += 1
         elif chance(rng, 0.3):   # candle
             S.lights.append(Light((tx_, ty_ + 0.12, tz_), col(1.0, 0.55, 0.18), I=U(rng, 0.05, 0.2), mode='iso',
                                   soft=0.1, B=LU(rng, 10, 50), r_px=U(rng, 1.0, 2.5), glow=LU(rng, 0.03, 0.1),
                                   glow_r=U(rng, 3, 8), ztol=0.05))
-            paint_box(S, (tx_ - 0.03, ty_, tz_ - 0.03), (tx_ + 0.03, ty_ + 0.1, tz_ + 0.03), Plain(col(0.8, 0.78, 0.7), 0.0), K_OBJ)
+            paint_box(S, (tx_ - 0.03, ty_, tz_ - 0.03), (tx_ + 0.03, ty_ + 0.1, tz_ + 0.03),
+                      Plain(col(0.8, 0.78, 0.7), 0.0), K_OBJ)
     if nl == 0 or chance(rng, 0.3):   # floor lamp
         fx, fz = pick(rng, [(-wl + 0.4, U(rng, 1.5, D - 0.5)), (wr - 0.4, U(rng, 1.5, D - 0.5))])
         c = INDOOR[pick(rng, lk[:3])]
