@@ -1,5 +1,22 @@
 #!/usr/bin/env python3
-"""nightgen -- independent synthetic NIGHT-scene generator (linear HDR -> OpenEXR).
+"""Independent synthetic NIGHT scenes (linear HDR -> OpenEXR), a TEST-ONLY set.
+
+A night-scene generator written by a helper WITHOUT reading the project's own scene generator
+(hdrcam's procedural scenes), and it imports nothing from hdrcam. Its scenes measure how the networks
+generalise to night scenes from a generator they never saw: never add them to training or validation data,
+or they stop measuring generalisation across generators.
+
+Units: linear RGB (Rec.709 primaries), arbitrary scale, 1.0 ~ a bright diffuse white surface under street
+light (sky ~0.001-0.02, lit windows 0.3-5, lamp cores 20-3000, headlights up to 5000; clipped at 1e5).
+
+    python tools/independent_night_scenes.py --count 24 --seed 7 --out DIR
+
+The reported set is seed 7, 24 scenes (tools/measure_generalisation.sh); development work may use other
+seeds. Output is deterministic for a given --seed (scene i depends on the seed and i only, so a smaller
+--count gives the first scenes of a larger one) and independent of --jobs. Each scene is written as
+DIR/night-gen-NNN.exr (float32 RGB, ZIP, 1024 x 1024), read back to verify, and summarised on one line
+(scene type, min / median / p99 / max luminance, fraction of pixels above 1.0). --contact PATH also writes
+a PNG contact sheet (256 px thumbnails, x/(1+x), gamma 1/2.2).
 
 Each scene is produced by a tiny deferred renderer written from scratch here:
   * pin-hole camera without rotation (lens shift sets the horizon / vanishing point),
@@ -10,15 +27,15 @@ Each scene is produced by a tiny deferred renderer written from scratch here:
   * emissive details: lamp cores with glow (+ optional diffraction spikes), neon strokes,
     light trails, stars, moon with halo,
   * wet-road / water reflections: vertically blurred mirror copies of everything above.
-
-Units: linear RGB (Rec.709 primaries), arbitrary scale, 1.0 ~ a bright diffuse white
-surface under street lighting.  Output: float32 RGB OpenEXR (ZIP), 1024 x 1024.
+Scene types: avenue, across (facades across a street), skyline (city across water), park, interior (about
+1 scene in 6).
 Dependencies: numpy, opencv (cv2), OpenEXR (>= 3.3 Python API).
 """
 import argparse
 import math
 import multiprocessing as mp
 import os
+import sys
 import time
 
 import numpy as np
@@ -2068,15 +2085,33 @@ def _work(args):
     return st, thumb
 
 
-def main():
+def _at_least_one(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("not a whole number: %r" % text) from None
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1, got %d" % value)
+    return value
+
+
+def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--count', type=int, default=24)
-    ap.add_argument('--seed', type=int, default=0)
-    ap.add_argument('--out', default='scenes')
-    ap.add_argument('--jobs', type=int, default=min(2, os.cpu_count() or 1))
-    ap.add_argument('--contact', default=None, help='contact-sheet PNG path (default: <out>/../contact.png)')
-    a = ap.parse_args()
-    os.makedirs(a.out, exist_ok=True)
+    ap.add_argument('--count', type=_at_least_one, default=24, metavar='N', help='number of scenes (default 24)')
+    ap.add_argument('--seed', type=int, default=0, metavar='N', help='the reported set is seed 7 (default 0)')
+    ap.add_argument('--out', required=True, metavar='DIR', help='folder for the EXRs (created if missing)')
+    ap.add_argument('--jobs', type=_at_least_one, default=min(2, os.cpu_count() or 1), metavar='N',
+                    help='worker processes (default min(2, CPUs)); the output does not depend on it')
+    ap.add_argument('--contact', default=None, metavar='PATH', help='also write a contact-sheet PNG here')
+    a = ap.parse_args(argv)
+    if os.path.exists(a.out) and not os.path.isdir(a.out):
+        print("independent_night_scenes: --out %s exists and is not a folder" % a.out, file=sys.stderr)
+        return 1
+    try:
+        os.makedirs(a.out, exist_ok=True)
+    except OSError as e:
+        print("independent_night_scenes: cannot create --out %s: %s" % (a.out, e.strerror or e), file=sys.stderr)
+        return 1
     kinds = schedule(a.seed, a.count)
     tasks = [(i, a.seed, kinds[i], a.out) for i in range(a.count)]
     t0 = time.time()
@@ -2091,15 +2126,24 @@ def main():
             st, th = _work(tk)
             results.append((st, th))
             print_stats(st)
-    cols, rows = 6, int(math.ceil(a.count / 6))
-    sheet = np.zeros((rows * 256, cols * 256, 3), F)
-    for i, (st, th) in enumerate(results):
-        r, c = divmod(i, cols)
-        sheet[r * 256:(r + 1) * 256, c * 256:(c + 1) * 256] = th
-    tm = (sheet / (1 + sheet)) ** (1 / 2.2)
-    png = a.contact or os.path.join(os.path.dirname(os.path.abspath(a.out)), 'contact.png')
-    cv2.imwrite(png, np.clip(tm[..., ::-1] * 255 + 0.5, 0, 255).astype(np.uint8))
-    print("wrote %d scenes to %s, contact sheet %s, %.1f s total" % (a.count, a.out, png, time.time() - t0))
+    sheet_note = ''
+    if a.contact:
+        cols, rows = 6, int(math.ceil(a.count / 6))
+        sheet = np.zeros((rows * 256, cols * 256, 3), F)
+        for i, (st, th) in enumerate(results):
+            r, c = divmod(i, cols)
+            sheet[r * 256:(r + 1) * 256, c * 256:(c + 1) * 256] = th
+        tm = (sheet / (1 + sheet)) ** (1 / 2.2)
+        try:
+            ok = cv2.imwrite(a.contact, np.clip(tm[..., ::-1] * 255 + 0.5, 0, 255).astype(np.uint8))
+        except cv2.error:
+            ok = False
+        if not ok:
+            print("independent_night_scenes: could not write the contact sheet %s" % a.contact, file=sys.stderr)
+            return 1
+        sheet_note = ', contact sheet %s' % a.contact
+    print("wrote %d scenes to %s%s, %.1f s total" % (a.count, a.out, sheet_note, time.time() - t0))
+    return 0
 
 
 def print_stats(st):
@@ -2109,4 +2153,4 @@ def print_stats(st):
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())
