@@ -1,6 +1,6 @@
 """Scratch: hdrcam CLI with procedural street lamps and headlights given a glow (GLOW=1), else unchanged."""
 import os, sys
-import cv2, numpy as np
+import numpy as np
 import hdrcam.data.night_scene as ns
 
 if os.environ.get("GLOW") == "1":
