@@ -1,9 +1,11 @@
-"""Scratch: hdrcam CLI with procedural street lamps and headlights given a glow (GLOW=1), else unchanged."""
+"""Scratch: hdrcam CLI with procedural street lamps and headlights given a glow - GLOW=1: every lamp; GLOW=mix: each
+with probability 0.5 (drawn first from the lamp's own generator); else unchanged."""
 import os, sys
 import numpy as np
 import hdrcam.data.night_scene as ns
 
-if os.environ.get("GLOW") == "1":
+if os.environ.get("GLOW") in ("1", "mix"):
+    MIX = os.environ["GLOW"] == "mix"
     plain_lamp, plain_head = ns._street_lamp, ns._headlights
 
     def _glow(scene, rng, x, y, radius, peak, colour):
@@ -28,7 +30,9 @@ if os.environ.get("GLOW") == "1":
         peak = probe.uniform(16.0, ns.HIGHLIGHT_PEAK)
         colour = ns._colour(probe)
         plain_lamp(scene, rng)
-        _glow(scene, np.random.default_rng([x, y, 7]), x, y, radius, peak, colour)
+        g = np.random.default_rng([x, y, 7])
+        if not MIX or g.random() < 0.5:
+            _glow(scene, g, x, y, radius, peak, colour)
 
     def _headlights(scene, rng):
         state = rng.bit_generator.state
@@ -40,6 +44,8 @@ if os.environ.get("GLOW") == "1":
         peak = probe.uniform(64.0, ns.HIGHLIGHT_PEAK)
         plain_head(scene, rng)
         g = np.random.default_rng([x, y, 8])
+        if MIX and g.random() >= 0.5:
+            return
         for offset in (0, separation):
             _glow(scene, g, x + offset, y, radius, peak, np.array([1.0, 0.97, 0.92]))
 
