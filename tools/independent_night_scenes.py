@@ -15,7 +15,8 @@ The reported set is seed 7, 24 scenes (tools/measure_generalisation.sh); develop
 seeds. Output is deterministic for a given --seed (scene i depends on the seed and i only, so a smaller
 --count gives the first scenes of a larger one) and independent of --jobs. Each scene is written as
 DIR/night-gen-NNN.exr (float32 RGB, ZIP, 1024 x 1024), read back to verify, and summarised on one line
-(scene type, min / median / p99 / max luminance, fraction of pixels above 1.0). --contact PATH also writes
+(scene type, min / median / p99 / max luminance, fraction of pixels above 1.0); a scene file already in DIR is
+refused in one line (exit 1) unless --overwrite. --contact PATH also writes
 a PNG contact sheet (256 px thumbnails, x/(1+x), gamma 1/2.2).
 
 Each scene is produced by a tiny deferred renderer written from scratch here:
@@ -2066,13 +2067,18 @@ def schedule(seed, count):
     return kinds
 
 
+def scene_name(idx):
+    """File name of scene ``idx`` without its .exr suffix."""
+    return "night-gen-%03d" % idx
+
+
 def _work(args):
     idx, seed, kind, out = args
     cv2.setNumThreads(1)
     t0 = time.time()
     rng = np.random.default_rng([seed, idx, 7919])
     img = BUILDERS[kind](rng)
-    name = "night-gen-%03d.exr" % idx
+    name = scene_name(idx) + ".exr"
     path = os.path.join(out, name)
     write_exr(path, img)
     back = read_exr(path)
@@ -2103,9 +2109,16 @@ def main(argv=None):
     ap.add_argument('--jobs', type=_at_least_one, default=min(2, os.cpu_count() or 1), metavar='N',
                     help='worker processes (default min(2, CPUs)); the output does not depend on it')
     ap.add_argument('--contact', default=None, metavar='PATH', help='also write a contact-sheet PNG here')
+    ap.add_argument('--overwrite', action='store_true', help='replace scenes already in --out')
     a = ap.parse_args(argv)
     if os.path.exists(a.out) and not os.path.isdir(a.out):
         print("independent_night_scenes: --out %s exists and is not a folder" % a.out, file=sys.stderr)
+        return 1
+    present = [name for name in (scene_name(i) + '.exr' for i in range(a.count))
+               if os.path.exists(os.path.join(a.out, name))]
+    if present and not a.overwrite:
+        print("independent_night_scenes: --out %s already holds %s (and %d more): --overwrite replaces them"
+              % (a.out, present[0], len(present) - 1), file=sys.stderr)
         return 1
     try:
         os.makedirs(a.out, exist_ok=True)

@@ -92,3 +92,12 @@ def test_imports_nothing_from_hdrcam():
             imported.add((node.module or "").split(".")[0])
     assert "hdrcam" not in imported
     assert imported <= {"argparse", "math", "multiprocessing", "os", "sys", "time", "numpy", "cv2", "OpenEXR"}
+
+
+def test_scenes_already_in_out_are_kept_unless_overwrite(scenes, capsys):
+    """A second run into a folder holding its scenes refuses in one line and leaves them as they were."""
+    before = [p.read_bytes() for p in scenes]
+    assert main(["--count", "2", "--seed", str(SEED + 2), "--jobs", "1", "--out", str(scenes[0].parent)]) == 1
+    error = capsys.readouterr().err
+    assert len(error.strip().splitlines()) == 1 and "night-gen-000.exr" in error and "--overwrite" in error
+    assert [p.read_bytes() for p in scenes] == before
