@@ -15,7 +15,7 @@ only take that excess down, never up, so the result is never brighter than the p
   channels (0 elsewhere), sigma from the camera's shot and read noise (relative units, 1 = full well). Where the
   own light alone over-explains a pixel (a hot pixel charged at the clip level beside dark neighbours), no excess
   can satisfy it, and the exact scale below - a minimum over the pixels the excess reaches - made it a veto: a
-  hot pixel 12-30 px from a lamp kept none of the lamp (tests/recon/test_judge_hot_pixel.py; what remains there
+  hot pixel 12-30 px from a lamp kept none of the lamp (tests/recon/test_do_no_harm.py; what remains there
   is a known limit); so the excess may still add what noise hides there (tools/results/real-data/slack-floor).
   B is the estimate's, not 1: a pixel next to a lamp clips from the lamp's spill alone while its own radiance is far
   below 1 (a 3 x 3 lamp at 200 x white clips 77 pixels, 68 of them dimmer than white), and charging those at 1
