@@ -343,9 +343,10 @@ def _evidence_shares(observed: np.ndarray, predicted: np.ndarray, nuisance: np.n
 
 
 def _headroom(slack: np.ndarray, unclipped: np.ndarray, spill: np.ndarray) -> np.ndarray:
-    """min(1, slack / spill) on unclipped pixels that the spill reaches, 1 elsewhere."""
+    """min(1, slack / spill) on unclipped pixels that the spill reaches, 1 elsewhere (``slack`` is positive: it
+    holds the noise allowance)."""
     reached = unclipped & (spill > 0)
-    headroom = np.divide(np.maximum(slack, 0.0), spill, out=np.ones_like(spill), where=reached)
+    headroom = np.divide(slack, spill, out=np.ones_like(spill), where=reached)
     return np.clip(headroom, 0.0, 1.0, out=headroom)
 
 
