@@ -33,6 +33,18 @@ only take that excess down, never up, so the result is never brighter than the p
   but kept a too-bright edge around a right core (README of tools/results/real-data, "The judge alone"). A
   cluster whose light reaches fewer than MIN_WITNESS_PIXELS unclipped pixels (a frame that is all white) has
   no witness: the frame is kept.
+- Defects. A pixel that clipped received at least white, and light on it reaches its neighbours through the
+  PSF: a clipped speck (at most DEFECT_MAX_PIXELS pixels, 8-connected) that no non-negative light on its own
+  pixels can make clip without sending some unclipped pixel within LOCAL_BOUND_PX more than it recorded beyond
+  the allowance is a sensor defect - a hot pixel reads white without light (a small linear programme per speck
+  and channel, :func:`_defects`). It keeps the clip level (no excess) and sends no own light (B = 0 there) in
+  the bound and the evidence. Charged at white it over-explained its dark neighbours, and a lamp 12-30 px away
+  whose spill reached them was cut to 0.47-1.0 of an exact proposal per channel (0.995 without the hot pixel;
+  tests/recon/test_do_no_harm.py; tools/results/real-data/hot-pixel). Only where the ground is darker than the
+  PSF's share for a nearest neighbour (0.05-0.07 of white, shipped DOE) can a hot pixel be told from light; a
+  point whose neighbours clip from its spill is light (charging each of them at white called real lamps at
+  14-17 x white defects). Only specks: a larger blob the PSF over-explains is a calibration error whose edge the
+  bound must keep charging.
 - Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
   excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with
@@ -87,6 +99,7 @@ import dataclasses
 import cv2
 import numpy as np
 import torch
+from scipy.optimize import linprog
 
 from hdrcam.recon.tiling import CLIP_LEVEL, clipped_clusters
 from hdrcam.sensor import fft_convolve, fft_shape, psf_spectrum, without_fft_round_off
@@ -107,6 +120,7 @@ SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean 
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
 STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
+DEFECT_MAX_PIXELS = 4  # a clipped blob this small whose own light at white its neighbours refute is a defect
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,6 +197,7 @@ class _ClusterView:
     sigma: np.ndarray  # the frame's noise on the crop
     nuisance: np.ndarray  # A(P * D) on the crop: the light the edge band can hide, beyond re-imaging
     edge: np.ndarray  # the crop's bool: the highlight with its own bright edge
+    defect: np.ndarray  # the region's bool: clipped specks the frame refutes as light (module docstring, "Defects")
 
     @classmethod
     def of(cls, frame: np.ndarray, clipped_channels: np.ndarray, crop: tuple[slice, slice], own: np.ndarray,
@@ -191,7 +206,8 @@ class _ClusterView:
         unclipped = ~clipped_channels[region]
         band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
         return cls(crop, own, region, inner, unclipped, noise.sigma(frame[crop]),
-                   _beyond_reimaged(band, unclipped, kernel)[inner], _bright_edge(frame[crop], own))
+                   _beyond_reimaged(band, unclipped, kernel)[inner], _bright_edge(frame[crop], own),
+                   _defects(frame[region], clipped_channels[region], kernel, noise))
 
 
 def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarray, views: list[_ClusterView],
@@ -212,9 +228,11 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
     confirmed = np.zeros(clipped.shape, bool)  # ... that also confirms the amount: shape kept
     for view in views:
         crop, own, region, inner, unclipped = view.crop, view.own, view.region, view.inner, view.unclipped
-        mine = clipped_channels[crop] & own[..., None]
+        defect = view.defect[inner] & own
+        mine = clipped_channels[crop] & (own & ~defect)[..., None]
         excess = np.where(mine, output[crop] - 1.0, 0.0).astype(np.float32)  # floored: no other cluster writes here
-        own_light = np.where(~unclipped, np.clip(estimate[region], 0.0, 1.0), 0.0).astype(np.float32)  # B
+        own_light = np.where(~unclipped & ~view.defect[..., None], np.clip(estimate[region], 0.0, 1.0), 0.0
+                             ).astype(np.float32)  # B
         explained = frame[region] - _convolve(own_light, kernel)  # y - P * B
         slack = np.maximum(explained[inner], 0.0) + K_SIGMA * view.sigma + TOLERANCE
         spill = np.zeros_like(explained)
@@ -232,7 +250,8 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
             strong[crop] |= own
             if shares.min() >= STRONG_EVIDENCE_SHARE:
                 confirmed[crop] |= own
-        output[crop] = np.where(mine, 1.0 + kept_excess, output[crop])
+        defect_channels = defect[..., None] & clipped_channels[crop]
+        output[crop] = np.where(mine, 1.0 + kept_excess, np.where(defect_channels, 1.0, output[crop]))
         proposed += float(excess.sum())
     _cap_shapes(output, at, clipped_at, clipped, confirmed[at])
     excess_proposed = np.where(clipped_at, floored_at - 1.0, 0.0)
@@ -259,6 +278,94 @@ def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray
     witnesses = (unclipped & (spill > 0)).sum(axis=(0, 1))
     scale = np.where(witnesses >= MIN_WITNESS_PIXELS, _headroom(slack, unclipped, spill).min(axis=(0, 1)), 0.0)
     return bounded * scale, spill * scale  # P * (s E) = s (P * E): no second convolution
+
+
+def _defects(frame: np.ndarray, clipped_channels: np.ndarray, kernel: _Kernel, noise: NoiseModel) -> np.ndarray:
+    """H x W bool of an H x W x 3 ``frame`` crop: the pixels of its clipped specks (8-connected blobs of at most
+    DEFECT_MAX_PIXELS, not touching the crop's border, where a larger blob may be cut) that no non-negative light
+    on the speck explains (module docstring, "Defects"): in some channel c it clipped in, no H >= 0 on its pixels
+    p gives sum_p H_p P_c(q - p) >= CLIP_LEVEL - o(q) on its clipped pixels q - o the light the rest of the frame
+    sends there, P * y with every speck left out - while sum_p H_p P_c(x - p) <= y(x) + K_SIGMA sigma + TOLERANCE
+    on the unclipped pixels x within LOCAL_BOUND_PX (a linear programme of at most DEFECT_MAX_PIXELS unknowns)."""
+    clipped = clipped_channels.any(axis=-1)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(clipped.astype(np.uint8), connectivity=8)
+    lefts, tops = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
+    inside = ((lefts > LOCAL_BOUND_PX) & (tops > LOCAL_BOUND_PX)
+              & (lefts + stats[:, cv2.CC_STAT_WIDTH] + LOCAL_BOUND_PX < clipped.shape[1])
+              & (tops + stats[:, cv2.CC_STAT_HEIGHT] + LOCAL_BOUND_PX < clipped.shape[0]))
+    is_speck = (stats[:, cv2.CC_STAT_AREA] <= DEFECT_MAX_PIXELS) & inside
+    is_speck[0] = False  # the background
+    defects = np.zeros(clipped.shape, bool)
+    if not is_speck.any():
+        return defects
+    elsewhere = np.where(is_speck[labels][..., None], 0.0, frame)  # o(q) leaves every speck out
+    for label in np.flatnonzero(is_speck):
+        top, left = tops[label], lefts[label]
+        height, width = stats[label, cv2.CC_STAT_HEIGHT], stats[label, cv2.CC_STAT_WIDTH]
+        rows, columns = np.nonzero(labels[top:top + height, left:left + width] == label)
+        rows, columns = rows + top, columns + left
+        window = (slice(top - LOCAL_BOUND_PX, top + height + LOCAL_BOUND_PX),
+                  slice(left - LOCAL_BOUND_PX, left + width + LOCAL_BOUND_PX))
+        speck_pixels = (rows - window[0].start, columns - window[1].start)
+        shares = _shares_from(*speck_pixels, kernel, (window[0].stop - window[0].start,
+                                                      window[1].stop - window[1].start))
+        own = labels[window] == label
+        needed = np.zeros(own.shape + (3,))
+        needed[own] = CLIP_LEVEL - np.array([_received(elsewhere, row, column, kernel)
+                                             for row, column in zip(rows, columns)])
+        most_received = frame[window] + K_SIGMA * noise.sigma(frame[window]) + TOLERANCE
+        for channel in np.flatnonzero(clipped_channels[rows, columns].any(axis=0)):
+            clipped_here = clipped_channels[window][..., channel]
+            if not _light_explains(shares[channel], speck_pixels, own & clipped_here, ~clipped_here,
+                                   needed[..., channel], most_received[..., channel]):
+                defects[rows, columns] = True
+                break
+    return defects
+
+
+def _received(image: np.ndarray, row: int, column: int, kernel: _Kernel) -> np.ndarray:
+    """(3,): (P * image) at one pixel, the PSF's reach cut at the image's border."""
+    psf = kernel.tensor.numpy()
+    radius = psf.shape[-1] // 2
+    top, bottom = max(row - radius, 0), min(row + radius + 1, image.shape[0])
+    left, right = max(column - radius, 0), min(column + radius + 1, image.shape[1])
+    # (P * image)(q) = sum_x P(q - x) image(x): the PSF flipped over the window
+    flipped = psf[:, ::-1, ::-1][:, top - row + radius:bottom - row + radius,
+                                 left - column + radius:right - column + radius]
+    return np.einsum("chw,hwc->c", flipped, image[top:bottom, left:right])
+
+
+def _shares_from(rows: np.ndarray, columns: np.ndarray, kernel: _Kernel, shape: tuple[int, int]) -> np.ndarray:
+    """(3, n, H, W): the share of its light that each of n pixels (``rows``, ``columns``) sends to every pixel of
+    an H x W window, through the PSF."""
+    psf = kernel.tensor.numpy()
+    centre = psf.shape[-1] // 2
+    window_rows, window_columns = np.mgrid[:shape[0], :shape[1]]
+    shares = np.zeros((3, len(rows)) + shape, np.float64)
+    for index, (row, column) in enumerate(zip(rows, columns)):
+        offset_rows, offset_columns = window_rows - row + centre, window_columns - column + centre
+        within = ((offset_rows >= 0) & (offset_rows < psf.shape[-2]) & (offset_columns >= 0)
+                  & (offset_columns < psf.shape[-1]))
+        shares[:, index][:, within] = psf[:, offset_rows[within], offset_columns[within]]
+    return shares
+
+
+def _light_explains(shares: np.ndarray, pixels: tuple[np.ndarray, np.ndarray], lit: np.ndarray,
+                    unclipped: np.ndarray, needed: np.ndarray, most_received: np.ndarray) -> bool:
+    """Whether some light H >= 0 on n ``pixels`` (rows, columns), sending ``shares`` (n x H x W) of itself to each
+    pixel of a window, gives every ``lit`` pixel at least ``needed`` and every ``unclipped`` one at most
+    ``most_received``.
+    Tried first without a solver: each lit pixel alone lighting itself to the most any of them needs (more light
+    than needed; on a bright ground, where specks of noise clip, it already fits)."""
+    own_share = shares.reshape(len(shares), -1)[np.arange(len(shares)), np.ravel_multi_index(pixels, lit.shape)]
+    generous = np.where(lit[pixels], needed[lit].max(initial=0.0) / np.maximum(own_share, 1e-12), 0.0)
+    received = np.tensordot(generous, shares, axes=1)
+    if np.all(received[lit] >= needed[lit]) and np.all(received[unclipped] <= most_received[unclipped]):
+        return True
+    result = linprog(np.zeros(shares.shape[0]), A_ub=np.vstack([-shares[:, lit].T, shares[:, unclipped].T]),
+                     b_ub=np.concatenate([-needed[lit], most_received[unclipped]]), bounds=(0, None),
+                     method="highs")
+    return result.status != 2  # 2: infeasible
 
 
 def _grown(crop: tuple[slice, slice], by_px: int, shape: tuple[int, int]) -> tuple[tuple[slice, slice],
