@@ -120,7 +120,7 @@ def run(arguments: argparse.Namespace) -> int:
         with tqdm.external_write_mode(file=sys.stderr):  # lines of their own, not run on from the progress bar
             if streaks.warning():
                 warnings.warn(f"{source.name}: {streaks.warning()}")
-            if result.consistency.fallen_back_pixels:
+            if result.consistency.fallen_back_pixels or result.consistency.defect_pixels:
                 print(f"{source.name}: {result.consistency.summary()} (confidence map: "
                       f"{output_paths(arguments.out, source)[2].name})", file=sys.stderr)
         exr_path, png_path, confidence_path = output_paths(arguments.out, source)
@@ -146,6 +146,7 @@ def run(arguments: argparse.Namespace) -> int:
                           "streak_fit": result.streak_fit, "placement": result.placement,
                           "consistency": result.consistency.summary(),
                           "fallback_fraction": round(result.fallback_fraction, 4),
+                          "sensor_defect_pixels": result.consistency.defect_pixels,
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     progress.close()
     return 0

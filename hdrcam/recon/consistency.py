@@ -148,6 +148,7 @@ class ConsistencyReport:
     # H x W bool: clipped pixels of the clusters whose streaks show their proposed light beyond doubt (z >=
     # STRONG_EVIDENCE_Z in some channel), whatever share of it the evidence kept; None where not recorded
     strong_evidence: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
+    defect_pixels: int = 0  # clipped pixels no light explains, kept at the clip level (module docstring, "Defects")
 
     @property
     def fallback_fraction(self) -> float:
@@ -157,9 +158,11 @@ class ConsistencyReport:
     def summary(self) -> str:
         if not self.clusters:
             return "consistency: no clipped pixel"
+        defects = (f"; {self.defect_pixels} clipped pixels no light can explain (hot pixels?) kept at white"
+                   if self.defect_pixels else "")
         return (f"consistency: {self.clusters} clusters, kept {100 * (1 - self.fallback_fraction):.0f} % of the "
                 f"proposed highlight excess; {self.fallen_back_pixels} of {self.clipped_pixels} clipped pixels "
-                f"fell back towards the frame")
+                f"fell back towards the frame{defects}")
 
 
 def make_consistent(frame: np.ndarray, estimate: np.ndarray, psf: np.ndarray, *, noise: NoiseModel = NoiseModel()
@@ -224,11 +227,13 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
         return output, confidence, ConsistencyReport(0, 0.0, 0.0, 0, 0, np.zeros(clipped.shape, bool),
                                                      np.zeros(clipped.shape, bool))
     proposed = 0.0
+    defect_pixels = 0
     strong = np.zeros(clipped.shape, bool)  # clipped pixels of clusters with strong evidence
     confirmed = np.zeros(clipped.shape, bool)  # ... that also confirms the amount: shape kept
     for view in views:
         crop, own, region, inner, unclipped = view.crop, view.own, view.region, view.inner, view.unclipped
         defect = view.defect[inner] & own
+        defect_pixels += int(defect.sum())
         mine = clipped_channels[crop] & (own & ~defect)[..., None]
         excess = np.where(mine, output[crop] - 1.0, 0.0).astype(np.float32)  # floored: no other cluster writes here
         own_light = np.where(~unclipped & ~view.defect[..., None], np.clip(estimate[region], 0.0, 1.0), 0.0
@@ -261,7 +266,7 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
     confidence[at] = np.clip(share, 0.0, 1.0)
     fallen_back = int((confidence[at] < FALLEN_BACK_SHARE).sum())
     return output, confidence, ConsistencyReport(len(views), proposed, kept, int(clipped.sum()), fallen_back,
-                                                 confirmed, strong)
+                                                 confirmed, strong, defect_pixels)
 
 
 def _bounded_excess(slack: np.ndarray, unclipped: np.ndarray, excess: np.ndarray, kernel: _Kernel

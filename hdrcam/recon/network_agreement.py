@@ -74,5 +74,6 @@ def judge_pair(frame: np.ndarray, first: np.ndarray, second: np.ndarray, psf: np
         clipped_pixels=len(at[0]),
         fallen_back_pixels=int((confidence[at] < FALLEN_BACK_SHARE).sum()),
         confirmed=picked([report.confirmed for _, _, report in judgements]),
-        strong_evidence=picked([report.strong_evidence for _, _, report in judgements]))
+        strong_evidence=picked([report.strong_evidence for _, _, report in judgements]),
+        defect_pixels=judgements[0][2].defect_pixels)  # the frame's alone: the same in every judgement
     return proposal, judged, confidence, report

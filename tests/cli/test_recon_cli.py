@@ -101,6 +101,23 @@ def test_reconstruct_writes_hdr_mask_confidence_and_previews(night_frame, tmp_pa
     assert (out / "frame.exr").read_bytes() == before
 
 
+def test_reconstruct_reports_a_hot_pixel_as_a_sensor_defect_and_keeps_it_white(night_frame, tmp_path, capsys):
+    """The night frame with its darkest pixel (away from the border) forced to white, as a hot pixel reads."""
+    frame = read_exr(night_frame / "frame.exr").rgb()
+    inner = frame[8:-8, 8:-8].max(axis=-1)
+    row, column = np.unravel_index(np.argmin(inner), inner.shape)
+    hot = (row + 8, column + 8)
+    assert frame[hot].max() < 0.02
+    frame[hot] = 1.0
+    write_exr(tmp_path / "hot.exr", frame)
+    assert main(["reconstruct", str(tmp_path / "hot.exr"), "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out.strip().splitlines()[-1])
+    assert report["sensor_defect_pixels"] == 1 and "no light can explain" in report["consistency"]
+    assert "no light can explain" in captured.err
+    np.testing.assert_array_equal(read_exr(tmp_path / "out" / "hot.exr").rgb()[hot], 1.0)
+
+
 def test_reconstruct_takes_any_tile_and_halo_and_scores_alike(night_frame, tmp_path):
     """Tiles are resized internally to the network's multiple of 16: odd sizes work and score alike."""
     outputs = []

@@ -754,8 +754,8 @@ def test_a_blob_larger_than_a_speck_is_never_called_a_defect(model):
 
 
 def test_a_hot_pixel_painted_as_a_lamp_keeps_the_clip_level(model):
-    """A network that reads a hot pixel as a lamp and proposes 5 x white there: the judge keeps the frame's white
-    and reports the proposal fallen back."""
+    """A network that reads a hot pixel as a lamp and proposes 5 x white there: the judge keeps the frame's white,
+    reports the proposal fallen back and says the pixel is one no light explains."""
     from hdrcam.recon.consistency import make_consistent
 
     frame = capture(np.full((64, 64, 3), 0.01, np.float32), model.psf)
@@ -765,3 +765,4 @@ def test_a_hot_pixel_painted_as_a_lamp_keeps_the_clip_level(model):
     judged, confidence, report = make_consistent(frame, proposal, np.asarray(model.psf, np.float32), noise=NOISE)
     np.testing.assert_array_equal(judged[30, 30], 1.0)
     assert confidence[30, 30] == 0.0 and report.fallen_back_pixels == 1
+    assert report.defect_pixels == 1 and "1 clipped pixels no light can explain" in report.summary()
