@@ -746,6 +746,34 @@ def test_real_point_lights_that_clip_are_not_called_defects(model, ground):
     assert _specks_called_defects(psf, ground, frame_points, []) == set()
 
 
+@pytest.mark.parametrize("site", [(0, 0), (0, 1), (1, 0), (1, 1)])
+def test_a_hot_photosite_in_the_real_arw_is_called_a_defect_after_demosaicing(model, shared_data, site):
+    """A photosite of the real A7R III ARW forced to the white level, inside its darkest 64 x 64 block, at each
+    position of the 2 x 2 CFA tile: demosaicing spreads it to its nearest neighbours (a quarter to a half of
+    white), not as far as the PSF would spread light, so the frame still refutes it - and only it."""
+    import dataclasses
+
+    from hdrcam.io.ldr_frame import raw_relative_rgb
+    from hdrcam.io.raw import read_raw
+    from hdrcam.recon.consistency import _defects, _Kernel
+
+    path = shared_data / "raw" / "sony-ilce7rm3-DSC2164.ARW"
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    raw = read_raw(path)
+    height, width = (side // 64 * 64 for side in raw.bayer_dn.shape)
+    blocks = raw.bayer_dn[:height, :width].reshape(height // 64, 64, width // 64, 64).mean(axis=(1, 3))
+    block_row, block_column = np.unravel_index(np.argmin(blocks), blocks.shape)
+    top, left = max(block_row * 64 - 32, 0), max(block_column * 64 - 32, 0)  # even: the CFA phase is kept
+    bayer = raw.bayer_dn[top:top + 128, left:left + 128].copy()
+    hot = (block_row * 64 + 32 - top + site[0], block_column * 64 + 32 - left + site[1])
+    bayer[hot] = raw.metadata.white_level_dn
+    frame = raw_relative_rgb(dataclasses.replace(raw, bayer_dn=bayer)).astype(np.float32)
+    assert np.median(frame) < 0.01 and (frame >= CLIP_LEVEL).any(axis=-1).sum() == 1
+    defects = _defects(frame, frame >= CLIP_LEVEL, _Kernel(np.asarray(model.psf, np.float32)), NOISE)
+    assert {tuple(int(index) for index in pixel) for pixel in np.argwhere(defects)} == {hot}
+
+
 def test_a_blob_larger_than_a_speck_is_never_called_a_defect(model):
     """Five pixels forced to white on a dark ground: refuted by its neighbours, but a blob this size may be a real
     highlight seen through a PSF calibrated too wide, whose edge the bound must keep charging."""
