@@ -256,8 +256,8 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
             if shares.min() >= STRONG_EVIDENCE_SHARE:
                 confirmed[crop] |= own
         defect_channels = defect[..., None] & clipped_channels[crop]
+        proposed += float(excess.sum()) + float(np.where(defect_channels, output[crop] - 1.0, 0.0).sum())
         output[crop] = np.where(mine, 1.0 + kept_excess, np.where(defect_channels, 1.0, output[crop]))
-        proposed += float(excess.sum())
     _cap_shapes(output, at, clipped_at, clipped, confirmed[at])
     excess_proposed = np.where(clipped_at, floored_at - 1.0, 0.0)
     excess_kept = np.where(clipped_at, output[at] - 1.0, 0.0)  # after the shape cap

@@ -794,3 +794,4 @@ def test_a_hot_pixel_painted_as_a_lamp_keeps_the_clip_level(model):
     np.testing.assert_array_equal(judged[30, 30], 1.0)
     assert confidence[30, 30] == 0.0 and report.fallen_back_pixels == 1
     assert report.defect_pixels == 1 and "1 clipped pixels no light can explain" in report.summary()
+    assert report.proposed_excess == pytest.approx(12.0) and report.fallback_fraction == 1.0  # 4 x 3 channels
