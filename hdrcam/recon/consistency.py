@@ -45,6 +45,13 @@ only take that excess down, never up, so the result is never brighter than the p
   point whose neighbours clip from its spill is light (charging each of them at white called real lamps at
   14-17 x white defects). Only specks: a larger blob the PSF over-explains is a calibration error whose edge the
   bound must keep charging.
+  Dead pixels, the other side: an unclipped pixel darker than each of its 8 neighbours beyond the allowance
+  that recorded less than the least light the clipped pixels near it must send it (a linear programme over
+  them, :func:`_dead_pixels`) measured nothing - a pixel reading 0 beside a lamp - and is left out of the
+  bound and the evidence in that channel: its slack was the noise allowance, and the exact per-cluster scale,
+  a minimum over pixels, kept 0.04-0.11 of a lamp 5-6 px from it (0.994 now). The least light that clips a
+  lamp's pixels is far below a bright lamp's, so a dead pixel farther than ~6 px is not refuted and still
+  cuts the lamp (a known limit, tests/recon/test_do_no_harm.py).
 - Evidence. The bound cannot see a highlight barely above the clip level: the lens core blurs the
   highlight's own edge below the clip level, and the unrecorded light of that edge is as large as a small
   excess's. The frame re-imaged from its own pixels tells them apart as far as the PSF allows: with
@@ -121,6 +128,7 @@ STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some cha
 STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
 DEFECT_MAX_PIXELS = 4  # a clipped blob this small whose own light at white its neighbours refute is a defect
+DEAD_MAX_SOURCES = 2000  # clipped pixels near a dark pixel beyond which its least light is not solved for
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,7 +204,7 @@ class _ClusterView:
     own: np.ndarray  # the crop's bool: the cluster's own clipped pixels
     region: tuple[slice, slice]  # the crop grown by two PSF radii: light from that far can matter
     inner: tuple[slice, slice]  # where the crop lies in the region
-    unclipped: np.ndarray  # the region's unclipped channels
+    unclipped: np.ndarray  # the region's channels that measured the scene: not clipped, not dead ("Defects")
     sigma: np.ndarray  # the frame's noise on the crop
     nuisance: np.ndarray  # A(P * D) on the crop: the light the edge band can hide, beyond re-imaging
     edge: np.ndarray  # the crop's bool: the highlight with its own bright edge
@@ -206,7 +214,8 @@ class _ClusterView:
     def of(cls, frame: np.ndarray, clipped_channels: np.ndarray, crop: tuple[slice, slice], own: np.ndarray,
            psf: np.ndarray, kernel: _Kernel, noise: NoiseModel) -> "_ClusterView":
         region, inner = _grown(crop, 2 * (psf.shape[-1] // 2), frame.shape[:2])
-        unclipped = ~clipped_channels[region]
+        dead = _dead_pixels(frame[region], clipped_channels[region], inner, kernel, noise)
+        unclipped = ~clipped_channels[region] & ~dead
         band = _convolve(_edge_deficit_bound(frame[region], clipped_channels[region], psf), kernel)
         return cls(crop, own, region, inner, unclipped, noise.sigma(frame[crop]),
                    _beyond_reimaged(band, unclipped, kernel)[inner], _bright_edge(frame[crop], own),
@@ -236,8 +245,8 @@ def _judged(frame: np.ndarray, estimate: np.ndarray, clipped_channels: np.ndarra
         defect_pixels += int(defect.sum())
         mine = clipped_channels[crop] & (own & ~defect)[..., None]
         excess = np.where(mine, output[crop] - 1.0, 0.0).astype(np.float32)  # floored: no other cluster writes here
-        own_light = np.where(~unclipped & ~view.defect[..., None], np.clip(estimate[region], 0.0, 1.0), 0.0
-                             ).astype(np.float32)  # B
+        own_light = np.where(clipped_channels[region] & ~view.defect[..., None], np.clip(estimate[region], 0.0, 1.0),
+                             0.0).astype(np.float32)  # B
         explained = frame[region] - _convolve(own_light, kernel)  # y - P * B
         slack = np.maximum(explained[inner], 0.0) + K_SIGMA * view.sigma + TOLERANCE
         spill = np.zeros_like(explained)
@@ -326,6 +335,74 @@ def _defects(frame: np.ndarray, clipped_channels: np.ndarray, kernel: _Kernel, n
                 defects[rows, columns] = True
                 break
     return defects
+
+
+def _dead_pixels(frame: np.ndarray, clipped_channels: np.ndarray, tested: tuple[slice, slice], kernel: _Kernel,
+                 noise: NoiseModel) -> np.ndarray:
+    """H x W x 3 bool of an H x W x 3 ``frame`` crop: unclipped channels that recorded less than the clipped
+    pixels near them must have sent them (module docstring, "Defects"). Tested where a pixel is darker than each
+    of its 8 neighbours beyond the upper bound's allowance and within a PSF radius of the channel's clipped
+    pixels: the least light L(x) = min sum_p H_p P_c(x - p), H >= 0 on the clipped pixels p within two radii,
+    subject to each clipped pixel q within one radius receiving CLIP_LEVEL - o(q), o(q) the most the unclipped
+    pixels can send it (each holds at most (y + allowance) / P0_c); dead where L(x) > y(x) + allowance. Dropping
+    the constraints of farther clipped pixels only lowers L: the test holds for any scene. Only the ``tested``
+    part of the crop is tested (a cluster's crop inside its region: every pixel within two radii of it is in the
+    region or beyond the frame), and no pixel with more than DEAD_MAX_SOURCES clipped pixels within two radii."""
+    dead = np.zeros(frame.shape, bool)
+    psf = kernel.tensor.numpy().astype(np.float64)
+    radius = psf.shape[-1] // 2
+    allowance = K_SIGMA * noise.sigma(frame) + TOLERANCE
+    neighbours = np.ones((3, 3), np.uint8)
+    neighbours[1, 1] = 0
+    inside = np.zeros(frame.shape[:2], bool)
+    inside[tested] = True
+    hidden = frame + allowance  # the most light a pixel can have received
+    darkest_neighbour = np.stack([cv2.erode(frame[..., channel], neighbours, borderType=cv2.BORDER_REPLICATE)
+                                  for channel in range(3)], axis=-1)
+    near = cv2.dilate(clipped_channels.astype(np.uint8), np.ones((2 * radius + 1,) * 2, np.uint8)) > 0
+    candidates = ~clipped_channels & near & inside[..., None] & (hidden < darkest_neighbour)
+    if not candidates.any():
+        return dead
+    most_unclipped_light = _convolve(np.where(clipped_channels, 0.0, hidden / psf[:, radius, radius]
+                                              ).astype(np.float32), kernel)
+    for row, column, channel in zip(*np.nonzero(candidates)):
+        dead[row, column, channel] = _least_light(psf[channel], clipped_channels[..., channel],
+                                                  most_unclipped_light[..., channel], row, column,
+                                                  hidden[row, column, channel]) > hidden[row, column, channel]
+    return dead
+
+
+def _least_light(psf: np.ndarray, clipped: np.ndarray, most_unclipped_light: np.ndarray, row: int, column: int,
+                 hidden: float) -> float:
+    """The least light the clipped pixels near (row, column) must send it (:func:`_dead_pixels`); 0 where the
+    programme is too large (more than DEAD_MAX_SOURCES clipped pixels within two PSF radii) or where even a
+    generous solution sends it no more than ``hidden``."""
+    radius = psf.shape[-1] // 2
+    top, left = max(row - 2 * radius, 0), max(column - 2 * radius, 0)
+    source_rows, source_columns = np.nonzero(clipped[top:row + 2 * radius + 1, left:column + 2 * radius + 1])
+    if not 0 < len(source_rows) <= DEAD_MAX_SOURCES:
+        return 0.0
+    source_rows, source_columns = source_rows + top - row, source_columns + left - column  # relative to the pixel
+    lit = (np.abs(source_rows) <= radius) & (np.abs(source_columns) <= radius)  # the constrained clipped pixels
+    if not lit.any():
+        return 0.0
+
+    def shares(to_rows: np.ndarray, to_columns: np.ndarray) -> np.ndarray:  # (to, sources): P(to - source)
+        offset_rows = to_rows[:, None] - source_rows[None, :] + radius
+        offset_columns = to_columns[:, None] - source_columns[None, :] + radius
+        within = ((offset_rows >= 0) & (offset_rows <= 2 * radius) & (offset_columns >= 0)
+                  & (offset_columns <= 2 * radius))
+        return np.where(within, psf[offset_rows.clip(0, 2 * radius), offset_columns.clip(0, 2 * radius)], 0.0)
+
+    received_by_pixel = shares(np.zeros(1, int), np.zeros(1, int))[0]
+    needed = CLIP_LEVEL - most_unclipped_light[row + source_rows[lit], column + source_columns[lit]]
+    # each constrained pixel lighting itself alone is feasible, so its light here bounds the least from above:
+    # where even that is hidden by the allowance (texture beside a window), no solver is needed
+    if received_by_pixel[lit] @ (np.clip(needed, 0.0, None) / psf[radius, radius]) <= hidden:
+        return 0.0
+    result = linprog(received_by_pixel, A_ub=-shares(source_rows[lit], source_columns[lit]), b_ub=-needed,
+                     bounds=(0, None), method="highs")
+    return float(result.fun) if result.status == 0 else 0.0
 
 
 def _received(image: np.ndarray, row: int, column: int, kernel: _Kernel) -> np.ndarray:
