@@ -313,6 +313,7 @@ def _defects(frame: np.ndarray, clipped_channels: np.ndarray, kernel: _Kernel, n
     if not is_speck.any():
         return defects
     elsewhere = np.where(is_speck[labels][..., None], 0.0, frame)  # o(q) leaves every speck out
+    psf = kernel.tensor.numpy().astype(np.float64)
     for label in np.flatnonzero(is_speck):
         top, left = tops[label], lefts[label]
         height, width = stats[label, cv2.CC_STAT_HEIGHT], stats[label, cv2.CC_STAT_WIDTH]
@@ -320,18 +321,15 @@ def _defects(frame: np.ndarray, clipped_channels: np.ndarray, kernel: _Kernel, n
         rows, columns = rows + top, columns + left
         window = (slice(top - LOCAL_BOUND_PX, top + height + LOCAL_BOUND_PX),
                   slice(left - LOCAL_BOUND_PX, left + width + LOCAL_BOUND_PX))
-        speck_pixels = (rows - window[0].start, columns - window[1].start)
-        shares = _shares_from(*speck_pixels, kernel, (window[0].stop - window[0].start,
-                                                      window[1].stop - window[1].start))
-        own = labels[window] == label
-        needed = np.zeros(own.shape + (3,))
-        needed[own] = CLIP_LEVEL - np.array([_received(elsewhere, row, column, kernel)
-                                             for row, column in zip(rows, columns)])
+        needed = CLIP_LEVEL - np.array([_received(elsewhere, row, column, kernel)
+                                        for row, column in zip(rows, columns)])  # (speck pixels, 3)
         most_received = frame[window] + K_SIGMA * noise.sigma(frame[window]) + TOLERANCE
         for channel in np.flatnonzero(clipped_channels[rows, columns].any(axis=0)):
-            clipped_here = clipped_channels[window][..., channel]
-            if not _light_explains(shares[channel], speck_pixels, own & clipped_here, ~clipped_here,
-                                   needed[..., channel], most_received[..., channel]):
+            lit = clipped_channels[rows, columns, channel]
+            unclipped = np.nonzero(~clipped_channels[window][..., channel])
+            if not _light_explains(psf[channel], (rows, columns), lit, needed[lit, channel],
+                                   (unclipped[0] + window[0].start, unclipped[1] + window[1].start),
+                                   most_received[..., channel][unclipped]):
                 defects[rows, columns] = True
                 break
     return defects
@@ -387,21 +385,15 @@ def _least_light(psf: np.ndarray, clipped: np.ndarray, most_unclipped_light: np.
     if not lit.any():
         return 0.0
 
-    def shares(to_rows: np.ndarray, to_columns: np.ndarray) -> np.ndarray:  # (to, sources): P(to - source)
-        offset_rows = to_rows[:, None] - source_rows[None, :] + radius
-        offset_columns = to_columns[:, None] - source_columns[None, :] + radius
-        within = ((offset_rows >= 0) & (offset_rows <= 2 * radius) & (offset_columns >= 0)
-                  & (offset_columns <= 2 * radius))
-        return np.where(within, psf[offset_rows.clip(0, 2 * radius), offset_columns.clip(0, 2 * radius)], 0.0)
-
-    received_by_pixel = shares(np.zeros(1, int), np.zeros(1, int))[0]
+    sources = (source_rows, source_columns)
+    received_by_pixel = _transfer(psf, (np.zeros(1, int), np.zeros(1, int)), sources)[0]
     needed = CLIP_LEVEL - most_unclipped_light[row + source_rows[lit], column + source_columns[lit]]
     # each constrained pixel lighting itself alone is feasible, so its light here bounds the least from above:
     # where even that is hidden by the allowance (texture beside a window), no solver is needed
     if received_by_pixel[lit] @ (np.clip(needed, 0.0, None) / psf[radius, radius]) <= hidden:
         return 0.0
-    result = linprog(received_by_pixel, A_ub=-shares(source_rows[lit], source_columns[lit]), b_ub=-needed,
-                     bounds=(0, None), method="highs")
+    result = linprog(received_by_pixel, A_ub=-_transfer(psf, (source_rows[lit], source_columns[lit]), sources),
+                     b_ub=-needed, bounds=(0, None), method="highs")
     return float(result.fun) if result.status == 0 else 0.0
 
 
@@ -417,36 +409,31 @@ def _received(image: np.ndarray, row: int, column: int, kernel: _Kernel) -> np.n
     return np.einsum("chw,hwc->c", flipped, image[top:bottom, left:right])
 
 
-def _shares_from(rows: np.ndarray, columns: np.ndarray, kernel: _Kernel, shape: tuple[int, int]) -> np.ndarray:
-    """(3, n, H, W): the share of its light that each of n pixels (``rows``, ``columns``) sends to every pixel of
-    an H x W window, through the PSF."""
-    psf = kernel.tensor.numpy()
-    centre = psf.shape[-1] // 2
-    window_rows, window_columns = np.mgrid[:shape[0], :shape[1]]
-    shares = np.zeros((3, len(rows)) + shape, np.float64)
-    for index, (row, column) in enumerate(zip(rows, columns)):
-        offset_rows, offset_columns = window_rows - row + centre, window_columns - column + centre
-        within = ((offset_rows >= 0) & (offset_rows < psf.shape[-2]) & (offset_columns >= 0)
-                  & (offset_columns < psf.shape[-1]))
-        shares[:, index][:, within] = psf[:, offset_rows[within], offset_columns[within]]
-    return shares
+def _transfer(psf: np.ndarray, targets: tuple[np.ndarray, np.ndarray], sources: tuple[np.ndarray, np.ndarray]
+              ) -> np.ndarray:
+    """(targets, sources): the share of its light each source pixel sends each target pixel through one channel's
+    (k, k) PSF, P(target - source); pixels as (rows, columns)."""
+    radius = psf.shape[-1] // 2
+    offset_rows = targets[0][:, None] - sources[0][None, :] + radius
+    offset_columns = targets[1][:, None] - sources[1][None, :] + radius
+    within = ((offset_rows >= 0) & (offset_rows <= 2 * radius) & (offset_columns >= 0)
+              & (offset_columns <= 2 * radius))
+    return np.where(within, psf[offset_rows.clip(0, 2 * radius), offset_columns.clip(0, 2 * radius)], 0.0)
 
 
-def _light_explains(shares: np.ndarray, pixels: tuple[np.ndarray, np.ndarray], lit: np.ndarray,
-                    unclipped: np.ndarray, needed: np.ndarray, most_received: np.ndarray) -> bool:
-    """Whether some light H >= 0 on n ``pixels`` (rows, columns), sending ``shares`` (n x H x W) of itself to each
-    pixel of a window, gives every ``lit`` pixel at least ``needed`` and every ``unclipped`` one at most
-    ``most_received``.
+def _light_explains(psf: np.ndarray, sources: tuple[np.ndarray, np.ndarray], lit: np.ndarray, needed: np.ndarray,
+                    unclipped: tuple[np.ndarray, np.ndarray], most_received: np.ndarray) -> bool:
+    """Whether some light H >= 0 on the n ``sources`` (rows, columns), through one channel's PSF, gives each of
+    the ``lit`` ones (n bool) at least ``needed`` and each ``unclipped`` pixel at most ``most_received``.
     Tried first without a solver: each lit pixel alone lighting itself to the most any of them needs (more light
     than needed; on a bright ground, where specks of noise clip, it already fits)."""
-    own_share = shares.reshape(len(shares), -1)[np.arange(len(shares)), np.ravel_multi_index(pixels, lit.shape)]
-    generous = np.where(lit[pixels], needed[lit].max(initial=0.0) / np.maximum(own_share, 1e-12), 0.0)
-    received = np.tensordot(generous, shares, axes=1)
-    if np.all(received[lit] >= needed[lit]) and np.all(received[unclipped] <= most_received[unclipped]):
+    at_least = _transfer(psf, (sources[0][lit], sources[1][lit]), sources)
+    at_most = _transfer(psf, unclipped, sources)
+    generous = np.where(lit, needed.max(initial=0.0) / psf[psf.shape[-1] // 2, psf.shape[-1] // 2], 0.0)
+    if np.all(at_least @ generous >= needed) and np.all(at_most @ generous <= most_received):
         return True
-    result = linprog(np.zeros(shares.shape[0]), A_ub=np.vstack([-shares[:, lit].T, shares[:, unclipped].T]),
-                     b_ub=np.concatenate([-needed[lit], most_received[unclipped]]), bounds=(0, None),
-                     method="highs")
+    result = linprog(np.zeros(len(lit)), A_ub=np.vstack([-at_least, at_most]),
+                     b_ub=np.concatenate([-needed, most_received]), bounds=(0, None), method="highs")
     return result.status != 2  # 2: infeasible
 
 
