@@ -18,15 +18,11 @@ n, labels, stats, _ = cv2.connectedComponentsWithStats(clipped.astype(np.uint8),
 print("frame", frame.shape, "clipped px", int(clipped.sum()), "blobs", n - 1, "specks <=4 px", int((stats[1:, 4] <= 4).sum()))
 kernel = _Kernel(psf)
 defects = np.zeros(clipped.shape, bool)
-dead = np.zeros(cc.shape, bool)
 for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
     v = _ClusterView.of(frame, cc, crop, own, psf, kernel, NoiseModel())
     d = np.zeros(clipped.shape, bool); d[v.region] = v.defect
     defects |= d
-    e = np.zeros(cc.shape, bool); e[v.region] = ~cc[v.region] & ~v.unclipped
-    dead |= e
 at = np.argwhere(defects)
-print("dead pixels", int(dead.any(-1).sum()))
 print("defect pixels", len(at))
 for r, c in at[:20]:
     print(r, c, frame[r, c].round(3), "neighbours max", frame[r-1:r+2, c-1:c+2].reshape(-1, 3).max(0).round(3),

@@ -26,12 +26,10 @@ for name, scene, seed in SceneSource(sys.argv[1], lenient=True).test_scenes(512,
     frame = ldr[0].permute(1, 2, 0).numpy().astype(np.float32)
     cc = frame >= CLIP_LEVEL; clipped = cc.any(-1)
     defects = np.zeros(clipped.shape, bool)
-    dead = np.zeros(cc.shape, bool)
     for crop, own in clipped_clusters(clipped, c):
         v = _ClusterView.of(frame, cc, crop, own, psf, kernel, NoiseModel())
         d = np.zeros(clipped.shape, bool); d[v.region] = v.defect; defects |= d
-        e = np.zeros(cc.shape, bool); e[v.region] = ~cc[v.region] & ~v.unclipped; dead |= e
-    print(name, "clipped", int(clipped.sum()), "dead", int(dead.any(-1).sum()), "defects", int(defects.sum()), flush=True)
+    print(name, "clipped", int(clipped.sum()), "defects", int(defects.sum()), flush=True)
     for r, col in np.argwhere(defects)[:8]:
         print("   ", r, col, "frame", frame[r, col].round(3), "truth", truth[r, col].round(3),
               "truth 3x3 max", truth[max(r-1,0):r+2, max(col-1,0):col+2].reshape(-1, 3).max(0).round(3),
