@@ -17,13 +17,12 @@ for label, psf in (("calibrated", np.asarray(load_psf(f"{demo}/3-calibration/psf
                    ("design", np.asarray(load_model().psf, np.float32))):
     cc = frame >= C.CLIP_LEVEL; clipped = cc.any(-1)
     kernel = C._Kernel(psf)
-    defects = np.zeros(clipped.shape, bool); dead = np.zeros(cc.shape, bool)
+    defects = np.zeros(clipped.shape, bool)
     for crop, own in clipped_clusters(clipped, psf.shape[-1] // 2):
         v = C._ClusterView.of(frame, cc, crop, own, psf, kernel, C.NoiseModel())
         d = np.zeros(clipped.shape, bool); d[v.region] = v.defect; defects |= d
-        e = np.zeros(cc.shape, bool); e[v.region] = ~cc[v.region] & ~v.unclipped; dead |= e
     print(label, "psf", psf.shape, "centre", psf[:, psf.shape[1] // 2, psf.shape[2] // 2].round(3),
-          "defects", int(defects.sum()), "dead", int(dead.any(-1).sum()))
+          "defects", int(defects.sum()))
     for r, c in np.argwhere(defects)[:6]:
         print("   defect", r, c, "truth", truth[r, c].round(2), "frame", frame[r, c].round(2))
 
