@@ -126,7 +126,7 @@ SHAPE_CAP = 4.0  # a pixel's excess is at most this multiple of its blob's mean 
 STRONG_EVIDENCE_Z = 20.0  # a cluster with evidence this significant in some channel is exempt from the shape cap
 STRONG_EVIDENCE_SHARE = 0.8  # ... if its evidence share (of the bounded excess) is at least this in every channel
 FALLEN_BACK_SHARE = 0.5  # a clipped pixel that kept less than this share of its proposed excess fell back
-DEFECT_MAX_PIXELS = 4  # a clipped blob this small whose own light at white its neighbours refute is a defect
+DEFECT_MAX_PIXELS = 4  # a clipped blob this small that no light through the PSF explains is a defect ("Defects")
 PSF_ERROR_FACTOR = 3.0  # the defect test refutes only light this many times what a pixel recorded (with its
 # allowance): a calibrated PSF's near shares are off by up to 1.78 x on the demo, hot pixels exceed 4 x
 
