@@ -302,7 +302,7 @@ def _defects(frame: np.ndarray, clipped_channels: np.ndarray, kernel: _Kernel, n
     on the unclipped pixels x within LOCAL_BOUND_PX (a linear programme of at most DEFECT_MAX_PIXELS unknowns),
     the right side times PSF_ERROR_FACTOR."""
     clipped = clipped_channels.any(axis=-1)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(clipped.astype(np.uint8), connectivity=8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(clipped.astype(np.uint8), connectivity=8)
     lefts, tops = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
     inside = ((lefts > LOCAL_BOUND_PX) & (tops > LOCAL_BOUND_PX)
               & (lefts + stats[:, cv2.CC_STAT_WIDTH] + LOCAL_BOUND_PX < clipped.shape[1])

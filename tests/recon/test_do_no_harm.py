@@ -681,16 +681,30 @@ def test_a_dirac_psf_sends_no_light_to_witness_so_a_proposal_falls_back(psf_px):
 # white; whatever proposes it says at least white there. Charged that own light, which its dark neighbours never
 # received, the judge found the neighbours over-explained: before the slack floor (tools/results/real-data/
 # slack-floor) a hot pixel 12-30 px from a lamp made it keep none of the lamp (a veto, seen on a dev scene of
-# tools/independent_night_scenes.py); after it, 0.47-1.0 per channel. A clipped speck whose own light at white its
-# neighbours refute is now judged a sensor defect: no own light, no excess (tools/results/real-data/hot-pixel).
+# tools/independent_night_scenes.py); after it, 0.47-1.0 per channel. A clipped speck that no light through the PSF
+# explains (with a margin for a calibrated PSF) is now judged a sensor defect: no own light, no excess
+# (tools/results/real-data/hot-pixel). A dead pixel beside a lamp is a known limit.
+
+LAMP = (slice(62, 67), slice(62, 67))  # a 5 x 5 lamp at 20 x white in the middle of a 128 x 128 frame
+
+
+def _lamp_scene() -> np.ndarray:
+    scene = np.full((128, 128, 3), 0.01, np.float32)
+    scene[LAMP] = 20.0
+    return scene
+
+
+def _lamp_share(judged: np.ndarray, scene: np.ndarray) -> np.ndarray:
+    """(3,) share of the lamp's true excess that ``judged`` keeps."""
+    return (judged[LAMP] - 1.0).sum(axis=(0, 1)) / (scene[LAMP] - 1.0).sum(axis=(0, 1))
+
 
 def _lamp_kept_beside_a_hot_pixel(psf: np.ndarray, offset_px: int) -> np.ndarray:
     """(3,) share of a 5 x 5 lamp's true excess (20 x white) the judge keeps, proposed exactly, with a hot pixel
     ``offset_px`` to its right."""
     from hdrcam.recon.consistency import make_consistent
 
-    scene = np.full((128, 128, 3), 0.01, np.float32)
-    scene[62:67, 62:67] = 20.0
+    scene = _lamp_scene()
     frame = capture(scene, psf)
     hot = (64, 64 + offset_px)
     assert frame[hot].max() < 0.5  # the lamp's own light there is far below white: the pixel is hot, not lit
@@ -698,9 +712,8 @@ def _lamp_kept_beside_a_hot_pixel(psf: np.ndarray, offset_px: int) -> np.ndarray
     proposal = scene.copy()
     proposal[hot] = 1.0  # a clipped pixel is at least white: what any network proposes for it
     judged, _, _ = make_consistent(frame, proposal, psf, noise=NOISE)
-    lamp = (slice(62, 67), slice(62, 67))
     assert judged[hot].min() >= 1.0  # the hot pixel keeps the clip level (the floor)
-    return (judged[lamp] - 1.0).sum(axis=(0, 1)) / (scene[lamp] - 1.0).sum(axis=(0, 1))
+    return _lamp_share(judged, scene)
 
 
 @pytest.mark.parametrize("offset_px", [12, 18, 22, 26, 30])
@@ -715,16 +728,14 @@ def _lamp_kept_beside_a_dead_pixel(psf: np.ndarray, offset_px: int, black_point:
     there, captured as it is."""
     from hdrcam.recon.consistency import make_consistent
 
-    scene = np.full((128, 128, 3), 0.01, np.float32)
-    scene[62:67, 62:67] = 20.0
+    scene = _lamp_scene()
     if black_point:
         scene[64, 64 + offset_px] = 0.0
     frame = capture(scene, psf)
     if not black_point:
         frame[64, 64 + offset_px] = 0.0
     judged, _, _ = make_consistent(frame, scene, psf, noise=NOISE)
-    lamp = (slice(62, 67), slice(62, 67))
-    return (judged[lamp] - 1.0).sum(axis=(0, 1)) / (scene[lamp] - 1.0).sum(axis=(0, 1))
+    return _lamp_share(judged, scene)
 
 
 @pytest.mark.xfail(strict=True, reason="known limit (hdrcam/recon/consistency.py, 'Defects'): a dead pixel's slack is "
