@@ -56,3 +56,29 @@ def test_a_run_in_another_precision_leaves_the_callers_network_as_it_was():
     reconstruct_frame(network, frame, psf_radius_px=8, adaptive=False, dtype=torch.bfloat16)
     for name, value in network.state_dict().items():
         assert value.dtype == weights[name].dtype and torch.equal(value, weights[name]), name
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e-4, 1e4])
+def test_the_judges_evidence_significance_does_not_depend_on_the_proposals_scale(scale):
+    """The evidence fit regresses the ring's light on the proposal's streaks: z = a / s is the same for any scale
+    of the proposal (a and s both scale as its inverse). Streaks 1e-9 of the ring's values (a channel clipped
+    by a hair) once fell below the pseudo-inverse's cut-off: s 1e-16 of its value, z = 1.5e9 for a fit of noise."""
+    from hdrcam.recon.consistency import _evidence_shares
+
+    rows, columns = np.mgrid[:64, :64].astype(np.float64)
+    own = (np.abs(rows - 32) < 4) & (np.abs(columns - 32) < 4)
+    distance = np.hypot(rows - 32, columns - 32)
+    streaks = np.repeat((np.exp(-distance / 6.0) * (1.0 + 0.5 * np.cos(columns / 3.0)))[..., None], 3, axis=-1)
+    nuisance = np.repeat(np.exp(-distance / 2.0)[..., None], 3, axis=-1)
+    noise = np.random.default_rng(0).normal(0.0, 0.01, streaks.shape)
+    observed = (0.05 * streaks + 0.003 * nuisance + 0.1 + noise).astype(np.float32)
+    unclipped = np.repeat(~own[..., None], 3, axis=-1)
+    sigma = np.full(streaks.shape, 0.01, np.float32)
+
+    def significance(proposal_scale: float) -> float:
+        _, z = _evidence_shares(observed, (proposal_scale * streaks).astype(np.float32), nuisance.astype(np.float32),
+                                unclipped, own, own, sigma, 20)
+        return z
+
+    assert significance(1.0) > 3.0  # the streaks are there: the test is about a real fit
+    assert significance(scale) == pytest.approx(significance(1.0), rel=1e-4)
