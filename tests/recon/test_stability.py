@@ -62,7 +62,8 @@ def test_a_run_in_another_precision_leaves_the_callers_network_as_it_was():
 def test_the_judges_evidence_significance_does_not_depend_on_the_proposals_scale(scale):
     """The evidence fit regresses the ring's light on the proposal's streaks: z = a / s is the same for any scale
     of the proposal (a and s both scale as its inverse). Streaks 1e-9 of the ring's values (a channel clipped
-    by a hair) once fell below the pseudo-inverse's cut-off: s 1e-16 of its value, z = 1.5e9 for a fit of noise."""
+    by a hair) once fell below the pseudo-inverse's cut-off: a variance 1e-16 of the true one, z = 1.5e9 for a
+    fit of noise."""
     from hdrcam.recon.consistency import _evidence_shares
 
     rows, columns = np.mgrid[:64, :64].astype(np.float64)
