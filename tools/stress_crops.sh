@@ -8,7 +8,8 @@
 # Usage: bash tools/stress_crops.sh OUT K1 K2 ... [-- EVALUATE OPTIONS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-out=${1:?usage: $0 OUT K1 K2 ... [-- EVALUATE OPTIONS]}; shift
+[ $# -ge 1 ] || { echo "usage: $0 OUT K1 K2 ... [-- EVALUATE OPTIONS]" >&2; exit 2; }
+out=$1; shift
 [ -d runs/data/train ] || { echo "runs/data is missing: python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data" >&2; exit 2; }
 [ -e "$out" ] && { echo "$out exists: choose another OUT" >&2; exit 1; }
 variants=()
