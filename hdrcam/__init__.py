@@ -9,6 +9,8 @@ numpy nor torch):
 - capture_bracket: shoot an exposure bracket of RAW frames (simulated or a USB Sony A7)
 - fuse: merge a RAW bracket into linear HDR (relative radiance)
 - calibrate_psf: measure the PSF from a point-source bracket
+- find_bad_pixels: the sensor's hot and dead pixels from dark and flat RAW frames (a mask; written as a dcraw
+  list by hdrcam.io.bad_pixels.write_bad_pixels, repaired on reading by hdrcam.io.ldr_frame.read_ldr_capture)
 - design / finetune: train the network (and the DOE) / fine-tune it behind a measured PSF
 - reconstruct: a captured LDR frame -> linear HDR
 - evaluate_checkpoints: score checkpoints on a fixed test set (PSNR in dB)
@@ -24,6 +26,7 @@ __version__ = "0.1.0"
 
 # public name -> the module that defines it
 _STAGES = {"capture_bracket": "hdrcam.stages", "fuse": "hdrcam.stages", "calibrate_psf": "hdrcam.stages",
+           "find_bad_pixels": "hdrcam.calibrate.bad_pixels",
            "design": "hdrcam.stages", "finetune": "hdrcam.stages", "reconstruct": "hdrcam.api",
            "evaluate_checkpoints": "hdrcam.stages"}
 

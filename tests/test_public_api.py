@@ -11,7 +11,8 @@ import numpy as np
 
 import hdrcam
 
-STAGES = ("capture_bracket", "fuse", "calibrate_psf", "design", "finetune", "reconstruct", "evaluate_checkpoints")
+STAGES = ("capture_bracket", "fuse", "calibrate_psf", "find_bad_pixels", "design", "finetune", "reconstruct",
+          "evaluate_checkpoints")
 
 
 def test_help_lists_every_stage_with_a_documented_function():

@@ -27,7 +27,8 @@ class OneLineParser(argparse.ArgumentParser):
 # command -> the module under hdrcam.cli that registers it, in the order of ``hdrcam --help``. Only the module of
 # the command being run is imported (all of them for ``hdrcam --help``); none imports torch before its run().
 COMMAND_MODULES = {"psf": "psf_command", "fabricate": "fabricate_command", "capture": "capture_command",
-                   "ingest": "ingest_command", "inspect": "inspect_command", "fuse": "fuse_command",
+                   "ingest": "ingest_command", "inspect": "inspect_command", "bad-pixels": "bad_pixels_command",
+                   "fuse": "fuse_command",
                    "calibrate": "calibrate_command", "design": "design_command", "finetune": "design_command",
                    "evaluate": "evaluate_command", "simulate": "simulate_command", "reconstruct": "reconstruct_command",
                    "destreak": "destreak_command", "export": "export_command", "demo": "demo_command"}

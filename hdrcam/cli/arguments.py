@@ -94,6 +94,14 @@ def _fraction(text: str, examples: str) -> float:
         raise argparse.ArgumentTypeError(f"expected {examples}, got {text!r}") from None
 
 
+def share(text: str) -> float:
+    """A share in (0, 1], such as 0.9 or 1."""
+    value = _number(text)
+    if not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 1], got {text!r}")
+    return value
+
+
 def exposure_seconds(text: str) -> float:
     """A shutter time in seconds: '1/4000', '0.5' or '2'."""
     value = _fraction(text, "seconds such as 1/4000 or 0.5")

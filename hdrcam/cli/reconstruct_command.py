@@ -61,6 +61,10 @@ def register(commands) -> None:
     parser.add_argument("--demosaic", choices=METHODS, default=DEFAULT_METHOD,
                         help=f"demosaicing of RAW inputs (default {DEFAULT_METHOD}: fast; edge-aware, menon2007: "
                              "sharper edges, slower)")
+    parser.add_argument("--bad-pixels", type=Path, default=None, metavar="LIST",
+                        help="the sensor's hot and dead pixels (a dcraw list, from 'hdrcam bad-pixels'): each is "
+                             "replaced by its same-colour neighbours before anything else, so none is taken for "
+                             "light or for its absence")
     parser.add_argument("--vgg-weights", type=Path, default=None)
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -78,7 +82,8 @@ def run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from hdrcam.io.exr import write_exr
-    from hdrcam.io.ldr_frame import read_ldr_frame_and_orientation
+    from hdrcam.io.bad_pixels import read_bad_pixels
+    from hdrcam.io.ldr_frame import read_ldr_capture
     from hdrcam.io.png import write_png
     from hdrcam.optics.psf_file import load_psf
     from hdrcam.preview import confidence_preview, display_oriented, tonemap_rgb
@@ -89,8 +94,8 @@ def run(arguments: argparse.Namespace) -> int:
 
     dtype = {"float32": torch.float32, "float16": torch.float16, "bfloat16": torch.bfloat16}[arguments.precision]
     device = checked_device(compute_device(arguments.device), dtype)  # before any file is read
-    inputs = [*arguments.inputs, *(path for path in (arguments.psf, arguments.checkpoint, arguments.partner)
-                                   if isinstance(path, Path))]
+    inputs = [*arguments.inputs, *(path for path in (arguments.psf, arguments.checkpoint, arguments.partner,
+                                                     arguments.bad_pixels) if isinstance(path, Path))]
     check_outputs_of_inputs(((source, output_paths(arguments.out, source)) for source in arguments.inputs),
                             overwrite=arguments.overwrite, inputs=inputs)
     if arguments.streak_fit and arguments.partner:
@@ -100,8 +105,10 @@ def run(arguments: argparse.Namespace) -> int:
     partner = resolve_partner(model, wanted, vgg_weights=arguments.vgg_weights)  # before any frame is read
     psf = load_psf(arguments.psf) if arguments.psf else model.psf
     core_radius = load_profile(model.profile).simulation.energy_centre_radius_px
-    frames, orientations = zip(*[read_ldr_frame_and_orientation(source, arguments.demosaic)
-                                 for source in arguments.inputs])  # every input checked before any work
+    bad_pixels = read_bad_pixels(arguments.bad_pixels) if arguments.bad_pixels else None
+    captures = [read_ldr_capture(source, arguments.demosaic, bad_pixels)
+                for source in arguments.inputs]  # every input checked before any work
+    frames = [capture.rgb for capture in captures]
     for source, frame in zip(arguments.inputs, frames):
         refuse_all_clipped(frame, str(source))
     plans = [plan_regions(frame, psf_radius_px=psf.shape[-1] // 2, adaptive=arguments.adaptive,
@@ -109,7 +116,8 @@ def run(arguments: argparse.Namespace) -> int:
     progress = tqdm(total=sum(network_windows(plan, psf, mirror_check=arguments.mirror_check,
                                                   partner=partner is not None) for plan in plans),
                     desc="reconstruct", unit="window")
-    for source, frame, orientation, plan in zip(arguments.inputs, frames, orientations, plans):
+    for source, capture, plan in zip(arguments.inputs, captures, plans):
+        frame, orientation = capture.rgb, capture.orientation
         started = time.perf_counter()
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
@@ -130,7 +138,8 @@ def run(arguments: argparse.Namespace) -> int:
                       "colour": "camera RGB", "orientation": orientation,
                       "windows_run": result.tiles.windows_run, "windows": result.tiles.windows,
                       "clipped_streak_pixels": streaks.clipped_streak_pixels,
-                      "fallback_fraction": round(result.fallback_fraction, 4)}
+                      "fallback_fraction": round(result.fallback_fraction, 4),
+                      "bad_pixels_repaired": capture.repaired_pixels}
         pixels = np.concatenate([result.hdr, streaks.mask[..., None].astype(np.float32),
                                  result.confidence[..., None]], axis=-1)
         with atomic_paths((exr_path, png_path, confidence_path), overwrite=arguments.overwrite) as (
@@ -147,6 +156,7 @@ def run(arguments: argparse.Namespace) -> int:
                           "consistency": result.consistency.summary(),
                           "fallback_fraction": round(result.fallback_fraction, 4),
                           "sensor_defect_pixels": result.consistency.defect_pixels,
+                          "bad_pixels_repaired": capture.repaired_pixels,
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     progress.close()
     return 0

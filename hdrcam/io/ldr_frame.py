@@ -23,6 +23,7 @@ Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -30,6 +31,7 @@ import cv2
 import numpy as np
 
 from hdrcam.errors import InputError
+from hdrcam.io.bad_pixels import BadPixelList, repair_mosaic, repair_rgb
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, is_exr_file, lossy_compression, read_exr
 from hdrcam.io.file_magic import starts_with
@@ -57,10 +59,29 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
     """``read_ldr_frame``'s frame and the EXIF Orientation code (1 to 8) that displays it upright: a RAW file's
     (its frame stays in the sensor's orientation), an EXR's ``orientation`` attribute (hdrcam's own outputs of
     a RAW carry it), else 1 (TIFF and PNG are taken as stored)."""
+    capture = read_ldr_capture(path, demosaic_method)
+    return capture.rgb, capture.orientation
+
+
+@dataclasses.dataclass(frozen=True)
+class LdrCapture:
+    """A captured frame as :func:`read_ldr_capture` reads it."""
+
+    rgb: np.ndarray  # H x W x 3 float32 camera RGB relative to white (0 .. 1)
+    orientation: int  # the EXIF Orientation code that displays it upright
+    repaired_pixels: int = 0  # listed bad pixels that apply to the frame, replaced by their neighbours' median
+    # (a warning names any left as read: no good neighbour)
+
+
+def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
+                     bad_pixels: BadPixelList | None = None) -> LdrCapture:
+    """``read_ldr_frame_and_orientation``'s frame and orientation, with the sensor defects of ``bad_pixels`` (a
+    dcraw list, :mod:`hdrcam.io.bad_pixels`) repaired: a RAW file's in its Bayer mosaic before demosaicing,
+    counted for the frame's capture time; an EXR's, TIFF's or PNG's per pixel after it (every listed pixel)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
-    suffix, orientation, exr = path.suffix.lower(), 1, False
+    suffix, orientation, exr, bad = path.suffix.lower(), 1, False, None
     if suffix == ".exr" or is_exr_file(path):
         image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
         rgb, orientation, exr = image.rgb(), exr_orientation(image.attributes), True
@@ -84,7 +105,8 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
                              "or float TIFF/PNG, an EXR or a RAW file")
     else:
         raw = read_raw(path)
-        rgb, orientation = raw_relative_rgb(raw, demosaic_method), raw.metadata.orientation
+        bad = bad_pixels.mask(raw.bayer_dn.shape, raw.metadata.timestamp) if bad_pixels is not None else None
+        rgb, orientation = raw_relative_rgb(raw, demosaic_method, bad=bad), raw.metadata.orientation
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     lowest, highest = float(rgb.min()), float(rgb.max())
@@ -97,7 +119,20 @@ def read_ldr_frame_and_orientation(path: Path, demosaic_method: str = DEFAULT_ME
         raise InputError(f"{path}: values reach {highest:.4g}, above white (1.0): " + (
             _lossy_advice(lossy, highest - 1.0) or "this is not an LDR capture (give the camera frame, not an HDR "
                                                    "image)"))
-    return np.clip(rgb, 0.0, 1.0).astype(np.float32), orientation
+    rgb = np.clip(rgb, 0.0, 1.0).astype(np.float32)
+    if bad_pixels is None:
+        return LdrCapture(rgb, orientation)
+    if bad is None:  # a demosaiced file: each pixel's own neighbours
+        bad = bad_pixels.mask(rgb.shape[:2])
+        rgb, unrepaired = repair_rgb(rgb, bad)
+        _warn_unrepaired(path, unrepaired)
+    return LdrCapture(rgb, orientation, int(bad.sum()))
+
+
+def _warn_unrepaired(path: Path, unrepaired: int) -> None:
+    if unrepaired:
+        warnings.warn(f"{path}: {unrepaired} listed bad pixels have no good neighbour of their colour (a cluster "
+                      "wider than the repair reaches) and are left as read")
 
 
 LOSSY_RINGING = 0.1  # of white: how far beyond black or white a lossy codec's ringing is taken to reach
@@ -146,8 +181,10 @@ def _warn_plateau_below_white(path: Path, image: np.ndarray) -> None:
                       "white is 65535")
 
 
-def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> np.ndarray:
-    """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced."""
+def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD, bad: np.ndarray | None = None
+                     ) -> np.ndarray:
+    """A RAW frame as camera RGB relative to its measured clip level (1 = clipped), demosaiced; the samples
+    ``bad`` marks (H x W bool) repaired before (:func:`hdrcam.io.bad_pixels.repair_mosaic`)."""
     warn_shading_not_applied([frame])
     height, width = frame.bayer_dn.shape
     black_tile = frame.metadata.black_level_tile()
@@ -158,4 +195,7 @@ def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD) -> 
     signal_dn = np.clip(frame.bayer_dn.astype(np.float32) - tiled(black_tile, height, width), 0.0, scale_dn)
     if np.all(black_tile == np.round(black_tile)) and scale_dn == round(scale_dn) and scale_dn < 65536:
         signal_dn = signal_dn.astype(np.uint16)  # exact: OpenCV's integer demosaicing
+    if bad is not None and bad.any():
+        signal_dn, unrepaired = repair_mosaic(signal_dn, bad)
+        _warn_unrepaired(frame.metadata.path, unrepaired)
     return demosaic(signal_dn, frame.metadata.cfa_pattern, demosaic_method) / np.float32(scale_dn)

@@ -751,10 +751,12 @@ def test_a_hot_pixel_beside_a_lamp_leaves_the_lamps_light_as_proposed(model, off
     assert kept.min() >= 0.9, kept  # without the hot pixel 0.995; 0 before the slack floor, 0.47-1.0 after it
 
 
-def _lamp_kept_beside_a_dead_pixel(psf: np.ndarray, offset_px: int, black_point: bool = False) -> np.ndarray:
+def _lamp_kept_beside_a_dead_pixel(psf: np.ndarray, offset_px: int, black_point: bool = False,
+                                   listed: bool = False) -> np.ndarray:
     """(3,) share of a 5 x 5 lamp's true excess (20 x white) the judge keeps, proposed exactly, with a pixel
-    ``offset_px`` to its right reading 0 (a dead pixel) - or, with ``black_point``, a scene point of no light
-    there, captured as it is."""
+    ``offset_px`` to its right reading 0 (a dead pixel; ``listed``: named in a bad-pixel list and repaired) - or,
+    with ``black_point``, a scene point of no light there, captured as it is."""
+    from hdrcam.io.bad_pixels import repair_rgb
     from hdrcam.recon.consistency import make_consistent
 
     scene = _lamp_scene()
@@ -763,6 +765,10 @@ def _lamp_kept_beside_a_dead_pixel(psf: np.ndarray, offset_px: int, black_point:
     frame = capture(scene, psf)
     if not black_point:
         frame[64, 64 + offset_px] = 0.0
+    if listed:
+        bad = np.zeros(frame.shape[:2], bool)
+        bad[64, 64 + offset_px] = True
+        frame = repair_rgb(frame, bad)[0]
     judged, _, _ = make_consistent(frame, scene, psf, noise=NOISE)
     return _lamp_share(judged, scene)
 
@@ -775,6 +781,13 @@ def _lamp_kept_beside_a_dead_pixel(psf: np.ndarray, offset_px: int, black_point:
 def test_a_dead_pixel_beside_a_lamp_leaves_the_lamps_light_as_proposed(model, offset_px):
     kept = _lamp_kept_beside_a_dead_pixel(model.psf, offset_px)
     assert kept.min() >= 0.9, kept  # without the dead pixel 0.995
+
+
+@pytest.mark.parametrize("offset_px", [3, 4, 5, 6, 10, 20])
+def test_a_listed_dead_pixel_beside_a_lamp_leaves_the_lamps_light_as_proposed(model, offset_px):
+    """The known limit above, with the dead pixel in the camera's bad-pixel list (``reconstruct --bad-pixels``):
+    repaired from its neighbours before the judge sees the frame, it no longer refutes the lamp."""
+    assert _lamp_kept_beside_a_dead_pixel(model.psf, offset_px, listed=True).min() >= 0.9
 
 
 @pytest.mark.parametrize("offset_px", [4, 5, 6])

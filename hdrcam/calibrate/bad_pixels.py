@@ -1,0 +1,76 @@
+"""Finding a sensor's bad pixels - hot ones that read bright without light, dead ones that read dark in it - in RAW
+frames of one camera.
+
+A sample is a candidate in one frame where it lies more than CANDIDATE_SIGMAS spreads from the median of its 3 x 3
+same-colour neighbours (its CFA sub-plane's), the spread being 1.4826 x the median absolute deviation of every
+sample of that sub-plane from its own neighbours' median (the noise, on a dark or evenly lit frame); it is bad
+where it is a candidate in at least ``confirm_share`` of the frames. Dark frames show hot pixels, evenly lit
+frames (a flat field, an out-of-focus grey card) dead ones: find each kind in its own frames and join the lists
+(dcraw's format concatenates). Photographs serve only where their scenes differ: an edge of the scene that
+stays on one pixel from frame to frame is a candidate in each.
+
+Not rawpy.enhance.find_bad_pixels: with hot and dead pixels both sought it subtracts the median from the uint16
+samples in place, so every sample below its neighbours' median wraps around to a candidate (rawpy 0.28: 2,309
+candidates in a 64 x 96 dark frame with 3 DN of read noise and two defects); and its threshold, 1/150 of the
+frame's brightest sample, is no measure of the noise. Numpy and OpenCV load on first use (``hdrcam bad-pixels
+--help`` reads the default alone).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from hdrcam.errors import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+MIN_FRAMES = 2  # one frame cannot tell a defect from a sharp point of its scene
+DEFAULT_CONFIRM_SHARE = 0.9
+CANDIDATE_SIGMAS = 8.0  # beyond a Gaussian's reach (~1e-15 per sample), wide of a Poisson tail at low counts
+MAD_TO_SIGMA = 1.4826  # a Gaussian's standard deviation per median absolute deviation
+MIN_SPREAD_DN = 1.0  # the spread of a sub-plane with no noise (a synthetic or heavily processed frame)
+
+
+def find_bad_pixels(frames: list[str | Path], confirm_share: float = DEFAULT_CONFIRM_SHARE) -> np.ndarray:
+    """H x W bool (the visible RAW area, sensor orientation): the samples that stand out from their same-colour
+    neighbours in at least ``confirm_share`` (0 < share <= 1) of ``frames``, RAW files of one camera and size.
+    InputError (one line) for fewer than MIN_FRAMES frames, frames of other sizes, or a file hdrcam does not read."""
+    import numpy as np
+
+    from hdrcam.io.raw import read_raw, read_raw_metadata
+
+    paths = [Path(frame) for frame in frames]
+    if len(paths) < MIN_FRAMES:
+        raise InputError(f"bad pixels are found in at least {MIN_FRAMES} frames (a defect stays where it is, a "
+                         f"point of the scene moves); got {len(paths)}")
+    if not 0.0 < confirm_share <= 1.0:
+        raise InputError(f"the confirming share of frames must lie in (0, 1], got {confirm_share:g}")
+    sizes = {path: (meta.height_px, meta.width_px) for path, meta in ((p, read_raw_metadata(p)) for p in paths)}
+    if len(set(sizes.values())) > 1:
+        listed = ", ".join(f"{path.name} {width} x {height}" for path, (height, width) in sizes.items())
+        raise InputError(f"frames of different sizes ({listed}): bad pixels are found in frames of one camera")
+    counts = np.zeros(sizes[paths[0]], np.uint16)
+    for path in paths:
+        counts += candidates(read_raw(path))
+    return counts >= np.ceil(confirm_share * len(paths) - 1e-9)
+
+
+def candidates(frame) -> np.ndarray:
+    """H x W bool: the samples of one RawFrame more than CANDIDATE_SIGMAS spreads from the median of their 3 x 3
+    same-colour neighbours."""
+    import cv2
+    import numpy as np
+
+    from hdrcam.hdr.merge import black_subtracted
+
+    signal_dn = black_subtracted(frame)
+    found = np.zeros(signal_dn.shape, bool)
+    for row in (0, 1):
+        for column in (0, 1):
+            plane = np.ascontiguousarray(signal_dn[row::2, column::2])
+            deviation = plane - cv2.medianBlur(plane, 3) if min(plane.shape) >= 3 else np.zeros_like(plane)
+            spread = max(MAD_TO_SIGMA * float(np.median(np.abs(deviation))), MIN_SPREAD_DN)
+            found[row::2, column::2] = np.abs(deviation) > CANDIDATE_SIGMAS * spread
+    return found
