@@ -208,13 +208,19 @@ def test_b_large_clipped_window_is_floored_bounded_and_removes_no_more_than_its_
 # c. a camera without a DOE
 
 
+@pytest.mark.parametrize("judged_with", ["bare lens", pytest.param("the DOE's PSF (no --psf)", marks=pytest.mark.xfail(
+    strict=True, raises=AssertionError, reason="known limit (README, 'A camera without a DOE'): judged through the "
+    "DOE's PSF, the bare lens's compact light beside the disc's edge fits as streaks (z 7-17 in green and blue) and "
+    "half the proposal is kept: -2.3 dB (bright ramp), -11.2 dB (dim ramp); on real photographs the same mismatch "
+    "harmed none (tools/results/real-data/no-doe-defaults)"))])
 @pytest.mark.parametrize("background", ["bright ramp 0.6-0.9", "dim ramp 0.2-0.4"])
-def test_c_camera_without_doe_gets_no_invented_highlights(model, bare_lens_psf, background):
+def test_c_camera_without_doe_gets_no_invented_highlights(model, bare_lens_psf, background, judged_with):
     """The bare lens keeps a highlight's light in and right around it: there are no streaks to tell how bright
     a clipped region is. With highlights whose truth is only 1.0-1.1 (a disc peaking at 1.1, a bar at 1.05),
-    the reconstruction (given the same bare-lens PSF) may not invent brightness: the mean output excess over 1
-    on clipped channels stays below 0.1 (the truth's is about 0.05), and the linear PSNR (peak 2^8) is at most
-    0.3 dB below the frame's."""
+    the reconstruction - given the same bare-lens PSF, or the default (the shipped DOE's: a user of an ordinary
+    camera who left out --psf) - may not invent brightness: the mean output excess over 1 on clipped channels
+    stays below 0.1 (the truth's is about 0.05), and the linear PSNR (peak 2^8) is at most 0.3 dB below the
+    frame's."""
     height = width = 128
     rows, columns = grid(height, width)
     low, high = (0.6, 0.9) if background.startswith("bright") else (0.2, 0.4)
@@ -228,7 +234,7 @@ def test_c_camera_without_doe_gets_no_invented_highlights(model, bare_lens_psf, 
     assert clipped_channels.sum() > 500
     assert scene[clipped_channels].max() <= 1.1 + 1e-6  # nothing clipped is brighter than 1.1
 
-    result = reconstruct(frame, model, psf=bare_lens_psf)
+    result = reconstruct(frame, model, psf=bare_lens_psf if judged_with == "bare lens" else None)
     check_invariants(result, frame)
     excess = float((result.hdr[clipped_channels] - 1.0).mean())
     truth_excess = float((scene[clipped_channels] - 1.0).mean())
