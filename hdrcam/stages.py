@@ -146,33 +146,38 @@ def _log_frames(say: Callable[[str], None], bracket: "Bracket", folder: Path) ->
 
 
 def fuse(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE, darks: str | Path | None = None,
-         camera_rgb: bool = False, with_variance: bool = False, demosaic: str = "bilinear") -> "FusedImage":
+         camera_rgb: bool = False, with_variance: bool = False, demosaic: str = "bilinear",
+         bad_pixels: str | Path | None = None) -> "FusedImage":
     """Merge a RAW bracket into linear HDR (nothing is written).
 
     ``bracket``: a bracket.json, a folder of RAW files, or the RAW files. ``profile``: the capture profile
     whose sensor noise (full well, read noise) weights the merge. ``darks``: dark frames (bracket.json or
     folder) to subtract instead of the black level. ``camera_rgb``: keep camera RGB (default: linear sRGB,
-    D65). ``demosaic``: ``bilinear`` (fast) or ``menon2007`` (sharper, slower). Returns a FusedImage: ``rgb``
+    D65). ``demosaic``: ``bilinear`` (fast) or ``menon2007`` (sharper, slower). ``bad_pixels``: a dcraw list of
+    the sensor's defects (from :func:`find_bad_pixels` and hdrcam.io.bad_pixels.write_bad_pixels), repaired in
+    the merged mosaic. Returns a FusedImage: ``rgb``
     (H x W x 3 float32, relative radiance = full wells per second at ISO 100), ``clipped`` (H x W bool: a
     lower bound), ``variance`` (with ``with_variance``) and the merge's exposure estimates.
     """
     from hdrcam.hdr.fuse import fuse as fuse_bracket
+    from hdrcam.io.bad_pixels import read_bad_pixels
     from hdrcam.profiles import load_profile
 
     return fuse_bracket(_sources(bracket), load_profile(profile).camera,
                         darks=Path(darks) if darks else None, camera_rgb=camera_rgb, with_variance=with_variance,
-                        demosaic_method=demosaic)
+                        demosaic_method=demosaic, bad_pixels=read_bad_pixels(bad_pixels) if bad_pixels else None)
 
 
 def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFAULT_PROFILE,
-                  darks: str | Path | None = None,
+                  darks: str | Path | None = None, bad_pixels: str | Path | None = None,
                   size_px: int | None = None, energy_fraction: float | None = None,
                   source_diameter_m: float | None = None, source_distance_m: float | None = None
                   ) -> "PsfCalibration":
     """Measure the PSF from a point-source (best: pinhole-array) bracket, on the Bayer data.
 
     ``size_px``: the odd PSF size in pixels (default: the profile's); ``energy_fraction``: crop to the smallest
-    size holding this fraction of every channel's energy. ``darks`` locate hot pixels. ``source_diameter_m``: the
+    size holding this fraction of every channel's energy. ``darks`` locate hot pixels; ``bad_pixels`` (a dcraw
+    list) names more, left out alike. ``source_diameter_m``: the
     point source's (pinhole's) diameter in metres, at ``source_distance_m`` metres from the lens (default: the
     profile's calibration.point_source_distance_m); its geometric image is warned about when wider than 1 px and
     refused when wider than ``size_px`` (hdrcam.calibrate.psf_calibration.check_source_size). Returns the
@@ -182,13 +187,15 @@ def calibrate_psf(bracket: str | Path | list[str | Path], *, profile: str = DEFA
     """
     from hdrcam.calibrate.psf_calibration import calibrate_psf as calibrate
     from hdrcam.calibrate.psf_calibration import source_size
+    from hdrcam.io.bad_pixels import read_bad_pixels
     from hdrcam.profiles import load_profile
 
     chosen = load_profile(profile)
     source = source_size(source_diameter_m, source_distance_m, chosen)
     return calibrate(_sources(bracket), chosen.camera, darks=Path(darks) if darks else None,
                      size_px=chosen.simulation.psf_size_px if size_px is None else size_px,
-                     energy_fraction=energy_fraction, source=source)
+                     energy_fraction=energy_fraction, source=source,
+                     bad_pixels=read_bad_pixels(bad_pixels) if bad_pixels else None)
 
 
 def _sources(bracket: "str | Path | list[str | Path]") -> list[Path]:

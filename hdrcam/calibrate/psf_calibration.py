@@ -26,6 +26,7 @@ import numpy as np
 
 from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf, fitted_models, phase_coverage
 from hdrcam.calibrate.hot_pixels import hot_pixel_map
+from hdrcam.io.bad_pixels import BadPixelList
 from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window, detect_sources
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
@@ -375,9 +376,11 @@ def warn_frame_motion(windows: list[SourceWindow], fit: EffectivePsf, frames: li
 
 
 def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None, size_px: int,
-                  energy_fraction: float | None = None, source: SourceSize | None = None) -> PsfCalibration:
+                  energy_fraction: float | None = None, source: SourceSize | None = None,
+                  bad_pixels: BadPixelList | None = None) -> PsfCalibration:
     """``source`` (:func:`source_size`): the point source's size, checked before any work
-    (:func:`check_source_size`) and kept in the result; None: not checked."""
+    (:func:`check_source_size`) and kept in the result; None: not checked. ``bad_pixels``: the sensor's listed
+    defects (a dcraw list), left out of the fit as the hot pixels found in ``darks`` are."""
     if isinstance(size_px, bool) or not isinstance(size_px, int) or size_px < 3 or size_px % 2 == 0:
         raise InputError(f"PSF size {size_px!r}: an odd number of pixels, 3 or more (the axis is the centre pixel)")
     if energy_fraction is not None and not 0 < energy_fraction <= 1:
@@ -393,6 +396,8 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     noise = merge.noise
     hot = hot_pixel_map(dark_frames, noise.read_noise_dn, noise.gain_dn_per_e) if dark_frames else \
         np.zeros((height, width), bool)
+    if bad_pixels is not None:
+        hot |= bad_pixels.mask((height, width), meta.timestamp)
     untrusted = dilated(merge.clipped_everywhere) | hot
     weight = np.where(untrusted, 0.0, 1.0 / merge.variance_at(neighbour_mean(merge.rate)))
     channels = channel_map(meta.cfa_pattern, height, width)

@@ -29,6 +29,9 @@ def register(commands) -> None:
     psf.add_argument("bracket", type=Path, nargs="+", help="bracket.json, a folder of RAW files, or RAW files")
     psf.add_argument("--darks", type=Path, default=None,
                      help="dark frames (bracket.json or folder): hot pixels are found in them")
+    psf.add_argument("--bad-pixels", type=Path, default=None, metavar="LIST",
+                     help="the sensor's hot and dead pixels (a dcraw list, from 'hdrcam bad-pixels'): left out of "
+                          "the fit with the hot pixels the darks show")
     psf.add_argument("--out", type=Path, required=True, help="record folder, e.g. calibration/NAME")
     psf.add_argument("--size", type=positive_int, default=None, metavar="PX",
                      help="PSF size to fit, odd (default: the profile's psf_size_px)")
@@ -49,6 +52,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.calibrate.psf_calibration import calibrate_psf, source_size
     from hdrcam.calibrate.record import OUTPUT_NAMES, write_record
     from hdrcam.hdr.bracket_input import bracket_input_files
+    from hdrcam.io.bad_pixels import read_bad_pixels
 
     profile = load_profile(arguments.profile)
     size = arguments.size or profile.simulation.psf_size_px
@@ -59,15 +63,18 @@ def run(arguments: argparse.Namespace) -> int:
     inputs = bracket_input_files(arguments.bracket)
     if arguments.darks:
         inputs += bracket_input_files([arguments.darks], kind="dark")
+    if arguments.bad_pixels:
+        inputs.append(arguments.bad_pixels)
     check_outputs([arguments.out / name for name in OUTPUT_NAMES], overwrite=arguments.overwrite, inputs=inputs)
+    bad_pixels = read_bad_pixels(arguments.bad_pixels) if arguments.bad_pixels else None
     started = time.perf_counter()
     calibration = calibrate_psf(arguments.bracket, profile.camera, darks=arguments.darks, size_px=size,
-                                energy_fraction=arguments.energy_fraction, source=source)
+                                energy_fraction=arguments.energy_fraction, source=source, bad_pixels=bad_pixels)
     command = "hdrcam " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else "hdrcam calibrate psf"
     paths = write_record(arguments.out, calibration, profile, command, overwrite=arguments.overwrite)
     fit = calibration.fit
     print(f"{len(calibration.windows)} point sources ({calibration.rejected_sources} rejected), "
-          f"{calibration.hot_pixels} hot pixels and {fit.outlier_samples} outlying samples left out; PSF "
+          f"{calibration.hot_pixels} hot (or listed bad) pixels and {fit.outlier_samples} outlying samples left out; PSF "
           f"{calibration.psf.shape[-1]} px, energy in crop " + "/".join(f"{e:.4f}" for e in calibration.energy_in_crop)
           + f"; reduced chi2 {fit.reduced_chi2:.3f}")
     print("peak SNR R/G/B " + "/".join(f"{s:.3g}" for s in calibration.peak_snr)

@@ -28,6 +28,9 @@ def register(commands) -> None:
     parser.add_argument("bracket", type=Path, nargs="+", help="bracket.json, a folder of RAW files, or RAW files")
     parser.add_argument("--out", type=Path, required=True, help="output EXR (a PNG preview goes beside it)")
     parser.add_argument("--darks", type=Path, default=None, help="dark frames (bracket.json or folder)")
+    parser.add_argument("--bad-pixels", type=Path, default=None, metavar="LIST",
+                        help="the sensor's hot and dead pixels (a dcraw list, from 'hdrcam bad-pixels'), replaced "
+                             "by their same-colour neighbours in the merged mosaic")
     parser.add_argument("--camera-rgb", action="store_true", help="keep camera RGB (no colour matrix)")
     parser.add_argument("--variance", action="store_true", help="add per-channel variance channels")
     parser.add_argument("--half", action="store_true",
@@ -44,6 +47,7 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.hdr.bracket_input import bracket_input_files
     from hdrcam.hdr.fuse import fuse
+    from hdrcam.io.bad_pixels import read_bad_pixels
     from hdrcam.io.atomic import atomic_paths, write_bytes_atomic
     from hdrcam.io.exr import write_exr_channels
     from hdrcam.io.png import encoded_png
@@ -55,13 +59,16 @@ def run(arguments: argparse.Namespace) -> int:
     inputs = bracket_input_files(arguments.bracket)
     if arguments.darks:
         inputs += bracket_input_files([arguments.darks], kind="dark")
+    if arguments.bad_pixels:
+        inputs.append(arguments.bad_pixels)
     check_writable(out, overwrite=True, inputs=inputs)  # an input given as the output is refused as such first
     if out.suffix.lower() != ".exr":
         raise InputError(f"--out {out}: name the EXR (NAME.exr); its preview is written beside it as NAME.png")
     check_outputs((out, preview), overwrite=arguments.overwrite, inputs=inputs)
     started = time.perf_counter()
+    bad_pixels = read_bad_pixels(arguments.bad_pixels) if arguments.bad_pixels else None
     image = fuse(arguments.bracket, profile.camera, darks=arguments.darks, camera_rgb=arguments.camera_rgb,
-                 with_variance=arguments.variance, demosaic_method=arguments.demosaic)
+                 with_variance=arguments.variance, demosaic_method=arguments.demosaic, bad_pixels=bad_pixels)
     channels = image.exr_channels()
 
     def preview_png() -> bytes:
@@ -78,6 +85,8 @@ def run(arguments: argparse.Namespace) -> int:
     merge = image.merge
     print(f"{len(image.frame_metadata)} frames {image.rgb.shape[1]} x {image.rgb.shape[0]}, {image.colour}; "
           f"clip level {merge.clip_level_dn:.0f} DN above black; {int(image.clipped.sum())} px clipped in every frame")
+    if bad_pixels is not None:
+        print(f"  {image.bad_pixels_repaired} listed bad pixels repaired")
     for note in merge.notes:
         print(f"  {note}")
     print(f"-> {out} and {preview} in {seconds:.1f} s")

@@ -21,6 +21,7 @@ from hdrcam.colorimetry import camera_to_srgb_matrix
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.merge import BayerMerge, merge_bayer
+from hdrcam.io.bad_pixels import BadPixelList, repair_mosaic
 from hdrcam.io.demosaic import DEFAULT_METHOD, FLOAT_METHODS, demosaic
 from hdrcam.io.raw import DAYLIGHT_ASSUMED, RawFrame, RawMetadata
 from hdrcam.io.raw_clipping import all_clipped
@@ -41,6 +42,7 @@ class FusedImage:
     merge: BayerMerge
     frame_metadata: list[RawMetadata]  # shortest exposure first; the frames' pixels are freed after the merge
     colour: str  # "linear sRGB (D65)" or "camera RGB"
+    bad_pixels_repaired: int = 0  # listed sensor defects replaced in the merged mosaic (hdrcam.io.bad_pixels)
 
     @property
     def orientation(self) -> int:
@@ -67,7 +69,8 @@ class FusedImage:
                 "labelled_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.labelled_exposures_s),
                 "estimated_exposures_s": ", ".join(f"{t:.6g}" for t in self.merge.exposures_s),
                 "clip_level_dn": float(self.merge.clip_level_dn),
-                "clip_levels_dn": ", ".join(f"{v:g}" for v in self.merge.clip_level_tile_dn.ravel())}
+                "clip_levels_dn": ", ".join(f"{v:g}" for v in self.merge.clip_level_tile_dn.ravel()),
+                "bad_pixels_repaired": self.bad_pixels_repaired}
 
 
 def matching_darks(frames: list[RawFrame], darks_source: Path | None) -> list[RawFrame | None] | None:
@@ -116,14 +119,17 @@ def _warn_if_lit(dark: RawFrame) -> None:
 
 
 def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, camera_rgb: bool = False,
-         with_variance: bool = False, demosaic_method: str = DEFAULT_METHOD) -> FusedImage:
+         with_variance: bool = False, demosaic_method: str = DEFAULT_METHOD,
+         bad_pixels: BadPixelList | None = None) -> FusedImage:
     """Merge the RAW frames of ``sources`` (bracket.json, a folder or files) into linear HDR.
 
     ``camera``: the profile's sensor (full well, read noise: the merge's noise model). ``darks``: dark frames
     (a bracket.json or folder) replacing the black level. ``camera_rgb``: keep camera RGB instead of linear
     sRGB. ``with_variance``: also the per-channel variance (demosaiced bilinearly whatever the image's method).
-    ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. Units: relative radiance, full wells per
-    second at ISO 100.
+    ``demosaic_method``: one of ``hdrcam.io.demosaic.FLOAT_METHODS``. ``bad_pixels``: the sensor's known defects
+    (a dcraw list), replaced in the merged mosaic by their same-colour neighbours before demosaicing (as of the
+    first frame's capture time; a dark frame's subtraction leaves a dead pixel dark and a hot one noisy). Units:
+    relative radiance, full wells per second at ISO 100.
     """
     if demosaic_method not in FLOAT_METHODS:  # before anything is read
         raise InputError(f"fuse's demosaic {demosaic_method!r}: one of {', '.join(FLOAT_METHODS)} (the merge is float "
@@ -135,6 +141,7 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
     frame_metadata = [frame.metadata for frame in frames]
     del frames  # their LibRaw buffers (2 bytes per sample and frame) are freed before the RGB image is made
     meta = frame_metadata[0]
+    repaired = _repair_listed(merge, bad_pixels, meta) if bad_pixels is not None else 0
     orientations = sorted({frame.orientation for frame in frame_metadata})
     if len(orientations) > 1:  # the merge is in sensor coordinates and unaffected; only the preview's turn is
         warnings.warn(f"the frames' EXIF orientations differ ({', '.join(map(str, orientations))}; the camera was "
@@ -155,7 +162,22 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         if variance is not None:
             transformed(variance, matrix ** 2)
         colour = "linear sRGB (D65)"
-    return FusedImage(rgb, clipped, variance, merge, frame_metadata, colour)
+    return FusedImage(rgb, clipped, variance, merge, frame_metadata, colour, repaired)
+
+
+def _repair_listed(merge: BayerMerge, bad_pixels: BadPixelList, meta: RawMetadata) -> int:
+    """Replace the listed samples of ``merge`` (rate, variance and the clipped-everywhere mask: each the median of
+    its same-colour neighbours) in place; how many were listed for the frame's time."""
+    bad = bad_pixels.mask(merge.rate.shape, meta.timestamp)
+    if bad.any():
+        merge.rate, unrepaired = repair_mosaic(merge.rate, bad)
+        if merge.variance is not None:
+            merge.variance = repair_mosaic(merge.variance, bad)[0]
+        merge.clipped_everywhere = repair_mosaic(merge.clipped_everywhere.view(np.uint8), bad)[0].view(bool)
+        if unrepaired:
+            warnings.warn(f"{meta.path.name}: {unrepaired} listed bad pixels have no good neighbour of their colour "
+                          "and are left as merged")
+    return int(bad.sum())
 
 
 def transformed(pixels: np.ndarray, matrix: np.ndarray) -> np.ndarray:

@@ -44,3 +44,31 @@ def test_reconstruct_repairs_the_listed_pixels_and_refuses_a_broken_list(tmp_pat
                  str(tmp_path / "out2")]) == 1
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "broken.txt, line 2" in error and not (tmp_path / "out2").exists()
+
+
+def test_fuse_repairs_the_listed_hot_pixels_of_a_bracket(tmp_path, capsys):
+    """A simulated bracket of a flat field with hot pixels (0.2-4 full wells a second of dark charge), fused
+    without darks: the hot pixels read high in the merge; with the list found in the bracket's darks they read
+    as their neighbours (the flat field's own level)."""
+    import hdrcam
+    from hdrcam.capture.simulated import SensorDefects
+
+    size, fraction, seed = (96, 64), 5e-3, 7
+    hdrcam.capture_bracket(tmp_path / "b", camera="sim", profile="simulated", scene="flat:0.1", size_px=size,
+                           shortest_s=1 / 30, stops=3, ev_step=2.0, darks=True, seed=seed, hot_pixel_fraction=fraction)
+    listed = tmp_path / "bad.txt"
+    assert main(["bad-pixels", str(tmp_path / "b" / "darks"), "--out", str(listed)]) == 0
+    truth = SensorDefects.draw(size[1], size[0], fraction, seed)
+    hot = (truth.hot_pixel_rows, truth.hot_pixel_columns)
+    plain = hdrcam.fuse([tmp_path / "b"], profile="simulated").merge.rate
+    repaired = hdrcam.fuse([tmp_path / "b"], profile="simulated", bad_pixels=listed)
+    position_level = np.array([[np.median(plain[row::2, column::2]) for column in (0, 1)] for row in (0, 1)])
+    level = position_level[hot[0] % 2, hot[1] % 2]  # each CFA colour's own level of the flat field (camera RGB)
+    assert repaired.bad_pixels_repaired == len(hot[0]) == 31
+    assert np.median(plain[hot] / level) > 1.2  # dark charge read as light (0.2-4 full wells a second)
+    assert np.abs(repaired.merge.rate[hot] / level - 1.0).max() < 0.1  # the flat field's level, to its noise
+    capsys.readouterr()
+    assert main(["fuse", str(tmp_path / "b"), "--bad-pixels", str(listed), "--out", str(tmp_path / "hdr.exr"),
+                 "--profile", "simulated"]) == 0
+    assert "31 listed bad pixels repaired" in capsys.readouterr().out
+    assert read_exr(tmp_path / "hdr.exr").attributes["bad_pixels_repaired"] == 31
