@@ -7,7 +7,7 @@ import numpy as np
 import hdrcam
 from hdrcam.capture.simulated import SensorDefects
 
-WIDTH, HEIGHT, HOT_FRACTION, SEED = 192, 128, 5e-3, 5
+WIDTH, HEIGHT, HOT_FRACTION, SEED = 192, 128, 1.5e-3, 5
 
 
 def test_the_hot_pixels_of_simulated_darks_are_found_and_nothing_else(tmp_path):
@@ -20,6 +20,6 @@ def test_the_hot_pixels_of_simulated_darks_are_found_and_nothing_else(tmp_path):
     truth = SensorDefects.draw(HEIGHT, WIDTH, HOT_FRACTION, SEED)
     hot = np.zeros((HEIGHT, WIDTH), bool)
     hot[truth.hot_pixel_rows, truth.hot_pixel_columns] = True
-    assert hot.sum() == 123
+    assert hot.sum() == 37
     assert np.array_equal(hdrcam.find_bad_pixels(sorted((tmp_path / "flats" / "darks").glob("*.dng"))), hot)
     assert not hdrcam.find_bad_pixels(sorted((tmp_path / "flats").glob("*.dng"))).any()
