@@ -26,6 +26,8 @@ from hdrcam.errors import InputError
 if TYPE_CHECKING:
     import numpy as np
 
+    from hdrcam.io.raw import RawFrame
+
 MIN_FRAMES = 2  # one frame cannot tell a defect from a sharp point of its scene
 DEFAULT_CONFIRM_SHARE = 0.9
 CANDIDATE_SIGMAS = 8.0  # beyond a Gaussian's reach (~1e-15 per sample), wide of a Poisson tail at low counts
@@ -66,7 +68,7 @@ def find_bad_pixels(frames: list[str | Path], confirm_share: float = DEFAULT_CON
     return bad
 
 
-def candidates(frame) -> np.ndarray:
+def candidates(frame: RawFrame) -> np.ndarray:
     """H x W bool: the samples of one RawFrame more than CANDIDATE_SIGMAS spreads from the median of their 3 x 3
     same-colour neighbours."""
     import cv2

@@ -26,13 +26,13 @@ import numpy as np
 
 from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf, fitted_models, phase_coverage
 from hdrcam.calibrate.hot_pixels import hot_pixel_map
-from hdrcam.io.bad_pixels import BadPixelList
 from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window, detect_sources
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import matching_darks
 from hdrcam.hdr.merge import BayerMerge, black_subtracted, dilated, merge_bayer
 from hdrcam.hdr.neighbour_mean import neighbour_mean
+from hdrcam.io.bad_pixels import BadPixelList
 from hdrcam.io.raw import RawFrame
 from hdrcam.profiles import CameraSpec, Profile
 

@@ -74,7 +74,8 @@ def run(arguments: argparse.Namespace) -> int:
     paths = write_record(arguments.out, calibration, profile, command, overwrite=arguments.overwrite)
     fit = calibration.fit
     print(f"{len(calibration.windows)} point sources ({calibration.rejected_sources} rejected), "
-          f"{calibration.hot_pixels} hot (or listed bad) pixels and {fit.outlier_samples} outlying samples left out; PSF "
+          f"{calibration.hot_pixels} hot (or listed bad) pixels and {fit.outlier_samples} outlying samples left "
+          f"out; PSF "
           f"{calibration.psf.shape[-1]} px, energy in crop " + "/".join(f"{e:.4f}" for e in calibration.energy_in_crop)
           + f"; reduced chi2 {fit.reduced_chi2:.3f}")
     print("peak SNR R/G/B " + "/".join(f"{s:.3g}" for s in calibration.peak_snr)

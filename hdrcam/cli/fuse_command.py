@@ -47,8 +47,8 @@ def register(commands) -> None:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.hdr.bracket_input import bracket_input_files
     from hdrcam.hdr.fuse import fuse
-    from hdrcam.io.bad_pixels import read_bad_pixels
     from hdrcam.io.atomic import atomic_paths, write_bytes_atomic
+    from hdrcam.io.bad_pixels import read_bad_pixels
     from hdrcam.io.exr import write_exr_channels
     from hdrcam.io.png import encoded_png
     from hdrcam.preview import display_oriented, reduced_for_preview, tonemap_rgb

@@ -18,7 +18,8 @@
   ICC profile's tone curves are not the identity (hdrcam.io.icc_profile: gamma, tables, LUT-based or damaged
   profiles) are refused (gamma-encoded, or not known to be linear). A file that starts like an EXR, a Radiance
   file or a JPEG is taken as one whatever its name.
-Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors.
+Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors. ``read_ldr_capture`` also
+repairs a camera's listed sensor defects (hdrcam.io.bad_pixels): a RAW file's in its mosaic before demosaicing.
 """
 
 from __future__ import annotations

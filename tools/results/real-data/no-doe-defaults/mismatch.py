@@ -3,7 +3,6 @@ what a user with an ordinary camera gets from `hdrcam reconstruct RAW` without -
 import sys, time
 from pathlib import Path
 import numpy as np
-from hdrcam import api
 from hdrcam.evaluate import scoring
 from hdrcam.data.scenes import SceneSource
 from hdrcam.optics.psf_file import load_psf
@@ -25,5 +24,5 @@ for image, m in by.items():
     g = m["hdrcam"] - m["ldr"]; gains.append(g)
     print(f"{image:55s} ldr {m['ldr']:.2f} hdrcam {m['hdrcam']:.2f} gain {g:+.3f}")
 gains = np.array(gains)
-print(f"{mode} {data}: mean {gains.mean():+.3f} worst {gains.min():+.3f} below-0.3 {(gains < -0.3).sum()} of {len(gains)} "
-      f"({time.perf_counter() - t:.0f} s)")
+print(f"{mode} {data}: mean {gains.mean():+.3f} worst {gains.min():+.3f} below-0.3 {(gains < -0.3).sum()} "
+      f"of {len(gains)} ({time.perf_counter() - t:.0f} s)")
