@@ -38,7 +38,6 @@ scoring.reconstruct = hook
 rows, _ = scoring.evaluate_models({"hdrcam": model}, SceneSource(sys.argv[1]), size_px=512, count=1, examples=0,
                                   partner=None, mirror_check=False)
 print({r.method: round(r.metrics["psnr_linear"], 2) for r in rows})
-import torch
 from hdrcam.train.optical_capture import OpticalCapture
 from hdrcam.profiles import load_profile
 r, f = hook_store["r"], hook_store["f"]
