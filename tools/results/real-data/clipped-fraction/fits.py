@@ -21,7 +21,8 @@ def patched(observed, predicted, nuisance, unclipped, own, edge, sigma, outer_px
         D = np.stack([s, nuisance[..., ch][ring].astype(np.float64), np.ones_like(s)], 1)
         c, f = C._least_squares(D, v)
         rv = np.mean((v - D @ c) ** 2); nv = np.mean(sigma[..., ch][ring] ** 2); f *= C.TEXTURE_CORRELATION
-        line.append(f"a {c[0]:.2f} z {c[0] / np.sqrt(max(f * max(rv, nv), 1e-30)):.1f} sT {np.sqrt(f * max(rv - nv, 0)):.3f}")
+        z = c[0] / np.sqrt(max(f * max(rv, nv), 1e-30))
+        line.append(f"a {c[0]:.2f} z {z:.1f} sT {np.sqrt(f * max(rv - nv, 0)):.3f}")
     out = orig(observed, predicted, nuisance, unclipped, own, edge, sigma, outer_px)
     if own.sum() > 500:
         print(f"  own {own.sum()} ring-px {outer_px}: " + " | ".join(line) + f" -> shares {np.round(out[0], 2)}")
@@ -45,7 +46,8 @@ cc = f >= 1.0
 cap = OpticalCapture(load_profile(model.profile), psf=np.asarray(model.psf))
 for name, scene, seed in SceneSource(sys.argv[1]).test_scenes(512, cap.margin_px, 1):
     t = scene[cap.margin_px:-cap.margin_px, cap.margin_px:-cap.margin_px]
-print("true excess on clipped channels", float(np.clip(t - 1, 0, None)[cc].sum()), "network", float((r.network_hdr - 1)[cc].clip(0).sum()),
-      "kept", float((r.hdr - 1)[cc].clip(0).sum()))
+print("true excess on clipped channels", float(np.clip(t - 1, 0, None)[cc].sum()),
+      "network", float((r.network_hdr - 1)[cc].clip(0).sum()), "kept", float((r.hdr - 1)[cc].clip(0).sum()))
 w = np.clip(t - 1, 0, None)[cc]; n = (r.hdr - 1)[cc]
-print("corr(truth excess, kept excess) on clipped channels", float(np.corrcoef(w, n)[0, 1]), "truth max", float(t.max()), "kept max", float(r.hdr.max()))
+print("corr(truth excess, kept excess) on clipped channels", float(np.corrcoef(w, n)[0, 1]),
+      "truth max", float(t.max()), "kept max", float(r.hdr.max()))
