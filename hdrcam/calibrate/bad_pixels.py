@@ -47,12 +47,12 @@ def find_bad_pixels(frames: list[str | Path], confirm_share: float = DEFAULT_CON
     from hdrcam.io.raw import read_raw, read_raw_metadata
 
     paths = [Path(frame) for frame in frames]
-    if len(paths) < MIN_FRAMES:
-        raise InputError(f"bad pixels are found in at least {MIN_FRAMES} frames (a defect stays where it is, a "
-                         f"point of the scene moves); got {len(paths)}")
     if not 0.0 < confirm_share <= 1.0:
         raise InputError(f"the confirming share of frames must lie in (0, 1], got {confirm_share:g}")
     sizes = {path: (meta.height_px, meta.width_px) for path, meta in ((p, read_raw_metadata(p)) for p in paths)}
+    if len(paths) < MIN_FRAMES:  # after each file is checked: a missing one is named as such
+        raise InputError(f"bad pixels are found in at least {MIN_FRAMES} frames (a defect stays where it is, a "
+                         f"point of the scene moves); got {len(paths)}")
     if len(set(sizes.values())) > 1:
         listed = ", ".join(f"{path.name} {width} x {height}" for path, (height, width) in sizes.items())
         raise InputError(f"frames of different sizes ({listed}): bad pixels are found in frames of one camera")
@@ -70,18 +70,18 @@ def find_bad_pixels(frames: list[str | Path], confirm_share: float = DEFAULT_CON
 
 def candidates(frame: RawFrame) -> np.ndarray:
     """H x W bool: the samples of one RawFrame more than CANDIDATE_SIGMAS spreads from the median of their 3 x 3
-    same-colour neighbours."""
-    import cv2
+    same-colour neighbours (each CFA position's spread its own)."""
     import numpy as np
 
+    from hdrcam.calibrate.hot_pixels import same_colour_median
     from hdrcam.hdr.merge import black_subtracted
 
     signal_dn = black_subtracted(frame)
+    deviation = signal_dn - same_colour_median(signal_dn)
     found = np.zeros(signal_dn.shape, bool)
     for row in (0, 1):
         for column in (0, 1):
-            plane = np.ascontiguousarray(signal_dn[row::2, column::2])
-            deviation = plane - cv2.medianBlur(plane, 3) if min(plane.shape) >= 3 else np.zeros_like(plane)
-            spread = max(MAD_TO_SIGMA * float(np.median(np.abs(deviation))), MIN_SPREAD_DN)
-            found[row::2, column::2] = np.abs(deviation) > CANDIDATE_SIGMAS * spread
+            plane = deviation[row::2, column::2]
+            spread = max(MAD_TO_SIGMA * float(np.median(np.abs(plane))), MIN_SPREAD_DN)
+            found[row::2, column::2] = np.abs(plane) > CANDIDATE_SIGMAS * spread
     return found

@@ -27,10 +27,20 @@ def hot_pixel_map(darks: list[RawFrame], read_noise_dn: float, gain_dn_per_e: fl
     hot = np.zeros(darks[0].bayer_dn.shape, bool)
     for dark in darks:
         signal = black_subtracted(dark)
-        for row in (0, 1):
-            for column in (0, 1):
-                plane = np.ascontiguousarray(signal[row::2, column::2])
-                local = cv2.medianBlur(plane, 3) if min(plane.shape) >= 3 else np.full_like(plane, np.median(plane))
-                noise = np.sqrt(read_noise_dn ** 2 + gain_dn_per_e * np.maximum(local, 0.0))
-                hot[row::2, column::2] |= plane > local + HOT_SIGMAS * noise
+        local = same_colour_median(signal)
+        noise = np.sqrt(read_noise_dn ** 2 + gain_dn_per_e * np.maximum(local, 0.0))
+        hot |= signal > local + HOT_SIGMAS * noise
     return hot
+
+
+def same_colour_median(mosaic: np.ndarray) -> np.ndarray:
+    """H x W float32: each sample's median of the 3 x 3 samples of its CFA position around it (its own included;
+    a 2 x 2 mosaic's sub-plane median filtered), in the mosaic's units; a sub-plane under 3 samples wide takes its
+    own median."""
+    local = np.empty(mosaic.shape, np.float32)
+    for row in (0, 1):
+        for column in (0, 1):
+            plane = np.ascontiguousarray(mosaic[row::2, column::2], np.float32)
+            local[row::2, column::2] = cv2.medianBlur(plane, 3) if min(plane.shape) >= 3 else \
+                np.full_like(plane, np.median(plane))
+    return local
