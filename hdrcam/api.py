@@ -89,10 +89,11 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     did not is then raised to at least what the unclipped channels and the highlight's hue show
     (hdrcam.recon.colour_fill; ``neutral_rgb``: the RGB a grey surface records in the frame - equal channels,
     the default, for a white-balanced frame, a RAW file's as-shot neutral for its camera RGB); unclipped pixels
-    are the frame less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With ``place_highlights`` (off by
-    default: on the validation photographs it changed nothing yet; hdrcam.recon.highlight_placement), light is
-    then added where long streaks say a blob's light sits (a sun inside its glow) and the judge vets the result
-    again, so the confidence map and the report are the second judge's. A frame
+    are the frame less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With
+    ``place_highlights`` (off by default: on the validation photographs it changed nothing yet;
+    hdrcam.recon.highlight_placement), light is then added where long streaks say a blob's light sits (a sun
+    inside its glow) and the judge vets the result again, so the confidence map and the report are the second
+    judge's. A frame
     clipped in every channel of every pixel records nothing to reconstruct from: InputError
     (hdrcam.recon.tiling.refuse_all_clipped).
     """

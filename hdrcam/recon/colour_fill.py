@@ -10,14 +10,14 @@ needed for it.
 The hue r_kj = k / j is the ratio of sums over the highlight's rim: the pixels unclipped in every channel within
 RIM_PX of a pixel where channel k clipped but not next to one (a demosaiced pixel there mixed the clipped sample
 into its value: a white disc's rim read green / red 0.8 where it was 2), weighted by their channel j squared (the
-brightest rim pixels carry the highlight's own colour; a dim surround often carries its own). The smallest of HUE_WINDOWS_PX (square
-windows about the pixel) holding any rim pixel decides. A highlight is paler than the surface around it - a
-specular glint or a lamp takes the colour of the light, not of the brass or the shade around it (a brass
-fitting's rim read red/blue 13 where its glint was 3.7) - so the hue is shrunk toward the frame's neutral n
-(the RGB a grey surface records: equal channels in a white-balanced frame, a RAW file's as-shot neutral in
-camera RGB): r = (r_kj)^HUE_SHRINK (n_k / n_j)^(1 - HUE_SHRINK). The estimate is the f_j-weighted mean of
-f_j r over the unclipped channels, and a clipped channel is at least 1 (the sensor recorded white) - so a
-channel barely clipped beside unclipped ones its hue does not lift stays at the clip level.
+brightest rim pixels carry the highlight's own colour; a dim surround often carries its own). The smallest of
+HUE_WINDOWS_PX (square windows about the pixel) holding any rim pixel decides. A highlight is paler than the
+surface around it - a specular glint or a lamp takes the colour of the light, not of the brass or the shade around
+it (a brass fitting's rim read red/blue 13 where its glint was 3.7) - so the hue is shrunk toward the frame's
+neutral n (the RGB a grey surface records: equal channels in a white-balanced frame, a RAW file's as-shot neutral
+in camera RGB): r = (r_kj)^HUE_SHRINK (n_k / n_j)^(1 - HUE_SHRINK). The estimate is the f_j-weighted mean of f_j r
+over the unclipped channels, and a clipped channel is at least 1 (the sensor recorded white) - so a channel barely
+clipped beside unclipped ones its hue does not lift stays at the clip level.
 
 Units: relative radiance, 1 = the sensor's white level; the frame in [0, 1].
 """
