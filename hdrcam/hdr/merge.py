@@ -258,7 +258,8 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
 
     with ThreadPoolExecutor(threads or worker_threads()) as pool:
         exposures = estimate_exposures(bracket.signals_and_clipped, row_strips, nominal_true, threshold,
-                                       np.sqrt(read_variance), notes, pool, black_dn=float(black_tile.min())) \
+                                       np.sqrt(read_variance), notes, pool, black_dn=float(black_tile.min()),
+                                       names=[str(frame.metadata.path) for frame in frames]) \
             if estimate_ratios and len(frames) > 1 else nominal_true.copy()
         list(pool.map(merge_strip, row_strips))
     if not np.array_equal(nominal_true, labelled):
