@@ -1,8 +1,9 @@
 """fuse against brackets whose frames disagree with each other: a frame whose data contradict its exposure is
-refused."""
+refused; a missing ISO is warned about (it sets the scale)."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,14 @@ def _fuse(frames: list[Path], out: Path, capsys) -> tuple[int, str, list[str]]:
     return run(["fuse", *frames, "--profile", "simulated", "--out", out], capsys)
 
 
+def _warnings_of_fuse(frames: list[Path], out: Path, capsys, about: str) -> list[str]:
+    """fuse (it must succeed): the warnings that mention ``about``."""
+    with warnings.catch_warnings(record=True) as warned:
+        warnings.simplefilter("always")
+        assert _fuse(frames, out, capsys)[0] == 0 and out.exists()
+    return [str(warning.message) for warning in warned if about in str(warning.message)]
+
+
 @pytest.mark.parametrize("black", [0, 1, 2, 3])
 def test_a_frame_that_recorded_no_light_is_refused_naming_it(tmp_path, capsys, black):
     """A frame holding only the black level (a capped lens, a failed shutter) among lit ones was merged with full
@@ -52,3 +61,13 @@ def test_a_bracket_of_consistent_frames_still_fuses(tmp_path, capsys):
     out = tmp_path / "fused.exr"
     status, _, lines = _fuse(_bracket(tmp_path / "lit"), out, capsys)
     assert status == 0 and out.exists(), lines
+
+
+def test_a_bracket_without_iso_is_fused_at_iso_100_with_a_warning(tmp_path, capsys):
+    """No ISO in the files: ISO 100 was assumed silently, though the unit (full wells per second at ISO 100)
+    scales with it."""
+    frames = _bracket(tmp_path / "noiso", iso=None)
+    assert _warnings_of_fuse(frames, tmp_path / "f.exr", capsys, "ISO") == [
+        "f0.dng and the bracket's other frames: no ISO recorded; ISO 100 is assumed, and the radiance (full wells "
+        "per second at ISO 100) scales with it: frames shot at ISO 400 would read 4x too bright"]
+    assert _warnings_of_fuse(_bracket(tmp_path / "iso"), tmp_path / "g.exr", capsys, "ISO") == []
