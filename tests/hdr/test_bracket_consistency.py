@@ -1,5 +1,5 @@
 """fuse against brackets whose frames disagree with each other: a frame whose data contradict its exposure is
-refused; a missing ISO is warned about (it sets the scale)."""
+refused; a missing ISO and differing as-shot whites are warned about (they set the scale and the colours)."""
 
 from __future__ import annotations
 
@@ -71,3 +71,22 @@ def test_a_bracket_without_iso_is_fused_at_iso_100_with_a_warning(tmp_path, caps
         "f0.dng and the bracket's other frames: no ISO recorded; ISO 100 is assumed, and the radiance (full wells "
         "per second at ISO 100) scales with it: frames shot at ISO 400 would read 4x too bright"]
     assert _warnings_of_fuse(_bracket(tmp_path / "iso"), tmp_path / "g.exr", capsys, "ISO") == []
+
+
+@pytest.mark.parametrize("odd", [0, 2])
+def test_frames_of_differing_as_shot_whites_are_warned_about(tmp_path, capsys, odd):
+    """The colours follow the shortest frame's as-shot white; another frame's was never compared."""
+    frames = _bracket(tmp_path / "wb")
+    rng = np.random.default_rng(3)
+    frames[odd] = write_dng(tmp_path / f"auto-{odd}.dng", sensor_dn(_radiance(), EXPOSURES_S[odd], rng),
+                            exposure_s=EXPOSURES_S[odd], as_shot_neutral=(0.3, 1.0, 0.6))
+    others = ", ".join(path.name for k, path in enumerate(frames) if k != odd)
+    groups = [f"auto-{odd}.dng: 0.3 1 0.6", f"{others}: 0.5 1 0.7"]
+    whites = "; ".join(groups if odd == 0 else groups[::-1])  # in frame order, the shortest frame's first
+    assert _warnings_of_fuse(frames, tmp_path / "f.exr", capsys, "white") == [
+        f"the frames' as-shot whites (camera RGB) differ ({whites}; auto white balance between shots?): the colours "
+        f"follow {frames[0].name}'s, the shortest frame's"]
+    # one white, written with other rounding: no warning
+    frames[odd] = write_dng(tmp_path / f"auto-{odd}.dng", sensor_dn(_radiance(), EXPOSURES_S[odd], rng),
+                            exposure_s=EXPOSURES_S[odd], as_shot_neutral=(0.50003, 1.0, 0.69998))
+    assert _warnings_of_fuse(frames, tmp_path / "g.exr", capsys, "white") == []
