@@ -26,7 +26,7 @@ from hdrcam.errors import InputError
 if TYPE_CHECKING:
     import numpy as np
 
-    from hdrcam.io.raw import RawFrame
+    from hdrcam.io.raw import RawFrame, RawMetadata
 
 MIN_FRAMES = 2  # one frame cannot tell a defect from a sharp point of its scene
 DEFAULT_CONFIRM_SHARE = 0.9
@@ -39,24 +39,70 @@ MAX_BAD_SHARE = 0.002  # of the samples: a sensor's defects are far fewer; two c
 
 def find_bad_pixels(frames: list[str | Path], confirm_share: float = DEFAULT_CONFIRM_SHARE) -> np.ndarray:
     """H x W bool (the visible RAW area, sensor orientation): the samples that stand out from their same-colour
-    neighbours in at least ``confirm_share`` (0 < share <= 1) of ``frames``, RAW files of one camera and size.
-    InputError (one line) for fewer than MIN_FRAMES frames, frames of other sizes, a file hdrcam does not read, or
-    more than MAX_BAD_SHARE of the samples found (the frames' scene, not the sensor)."""
-    import numpy as np
-
-    from hdrcam.io.raw import read_raw, read_raw_metadata
-
-    paths = [Path(frame) for frame in frames]
+    neighbours in at least ``confirm_share`` (0 < share <= 1) of ``frames``, RAW files of one camera and size, or
+    folders of them (:func:`frames_of_one_camera`). InputError (one line) for fewer than MIN_FRAMES frames, a frame
+    given twice or copied, frames of another camera or size, a file hdrcam does not read, or more than
+    MAX_BAD_SHARE of the samples found (the frames' scene, not the sensor)."""
     if not 0.0 < confirm_share <= 1.0:
         raise InputError(f"the confirming share of frames must lie in (0, 1], got {confirm_share:g}")
-    sizes = {path: (meta.height_px, meta.width_px) for path, meta in ((p, read_raw_metadata(p)) for p in paths)}
-    if len(paths) < MIN_FRAMES:  # after each file is checked: a missing one is named as such
+    return bad_pixels_in(frames_of_one_camera(frames), confirm_share)
+
+
+def listed_frames(frames: list[str | Path]) -> list[Path]:
+    """``frames`` with each folder replaced by the files that may be RAW in it, as fuse lists a folder
+    (:func:`hdrcam.capture.ingest.raw_files`)."""
+    from hdrcam.capture.ingest import raw_files
+
+    return [path for given in map(Path, frames) for path in (raw_files(given) if given.is_dir() else [given])]
+
+
+def frames_of_one_camera(frames: list[str | Path]) -> list[RawMetadata]:
+    """The metadata of ``frames`` (files, or folders listed as fuse lists them: the files LibRaw does not open as
+    RAW - a JPEG beside each RAW, a README - skipped with a warning naming each, as fuse skips them; a file given
+    by name must be RAW). InputError for fewer than MIN_FRAMES, for a frame counted twice (the same file, a link
+    to it or a byte-identical copy: it would confirm its own one-off hits as defects), or for frames of another
+    camera model or size."""
+    import warnings
+
+    from hdrcam.hdr.bracket_input import refuse_differences, refuse_repeated_files
+    from hdrcam.io.raw import NotRawError, read_raw_metadata, sensor_fingerprint
+
+    metadata, skipped = [], []
+    for given in map(Path, frames):
+        if not given.is_dir():
+            metadata.append(read_raw_metadata(given))
+            continue
+        for path in listed_frames([given]):
+            try:
+                metadata.append(read_raw_metadata(path))
+            except NotRawError as error:
+                skipped.append(error)
+    for error in skipped:
+        warnings.warn(f"skipped {error}")
+    if len(metadata) < MIN_FRAMES:  # after each file is checked: a missing one is named as such
         raise InputError(f"bad pixels are found in at least {MIN_FRAMES} frames (a defect stays where it is, a "
-                         f"point of the scene moves); got {len(paths)}")
-    if len(set(sizes.values())) > 1:
-        listed = ", ".join(f"{path.name} {width} x {height}" for path, (height, width) in sizes.items())
-        raise InputError(f"frames of different sizes ({listed}): bad pixels are found in frames of one camera")
-    counts = np.zeros(sizes[paths[0]], np.uint16)
+                         f"point of the scene moves); got {len(metadata)}")
+    refuse_repeated_files(metadata, "the frames")
+    reference, one_camera = metadata[0], "bad pixels are found in frames of one camera"
+    for meta in metadata[1:]:
+        fingerprints = [(what, value, expected) for (what, value), (_, expected)
+                        in zip(sensor_fingerprint(meta), sensor_fingerprint(reference))]
+        refuse_differences(meta, reference, [("camera model", meta.camera_model, reference.camera_model),
+                                             *fingerprints], one_camera)
+    if len({(meta.height_px, meta.width_px) for meta in metadata}) > 1:
+        listed = ", ".join(f"{meta.path.name} {meta.width_px} x {meta.height_px}" for meta in metadata)
+        raise InputError(f"frames of different sizes ({listed}): {one_camera}")
+    return metadata
+
+
+def bad_pixels_in(frames: list[RawMetadata], confirm_share: float = DEFAULT_CONFIRM_SHARE) -> np.ndarray:
+    """:func:`find_bad_pixels` on the frames :func:`frames_of_one_camera` checked."""
+    import numpy as np
+
+    from hdrcam.io.raw import read_raw
+
+    paths = [meta.path for meta in frames]
+    counts = np.zeros((frames[0].height_px, frames[0].width_px), np.uint16)
     for path in paths:
         counts += candidates(read_raw(path))
     bad = counts >= np.ceil(confirm_share * len(paths) - 1e-9)

@@ -9,7 +9,6 @@ import argparse
 from pathlib import Path
 
 from hdrcam.calibrate.bad_pixels import DEFAULT_CONFIRM_SHARE
-from hdrcam.capture.ingest import raw_files
 from hdrcam.cli.arguments import share
 from hdrcam.io.atomic import check_outputs
 
@@ -27,12 +26,13 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
-    from hdrcam.calibrate.bad_pixels import find_bad_pixels
+    from hdrcam.calibrate.bad_pixels import bad_pixels_in, frames_of_one_camera, listed_frames
     from hdrcam.io.bad_pixels import write_bad_pixels
 
-    frames = [path for given in arguments.frames for path in (raw_files(given) if given.is_dir() else [given])]
-    check_outputs([arguments.out], overwrite=arguments.overwrite, inputs=frames)
-    bad = find_bad_pixels(frames, arguments.confirm_share)
+    check_outputs([arguments.out], overwrite=arguments.overwrite, inputs=listed_frames(arguments.frames))
+    metadata = frames_of_one_camera(arguments.frames)  # a folder's non-RAW files skipped, with a warning
+    frames = [meta.path for meta in metadata]
+    bad = bad_pixels_in(metadata, arguments.confirm_share)
     write_bad_pixels(arguments.out, bad, overwrite=arguments.overwrite,
                      comment=f"found by hdrcam bad-pixels in {len(frames)} frames (confirm share "
                              f"{arguments.confirm_share:g}): {', '.join(path.name for path in frames[:4])}"

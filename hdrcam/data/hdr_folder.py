@@ -10,38 +10,46 @@ import numpy as np
 
 from hdrcam.colorimetry import in_rec709
 from hdrcam.errors import InputError, failure_message
-from hdrcam.io.exr import is_exr_file, read_exr
+from hdrcam.io.exr import read_exr
+from hdrcam.io.file_magic import file_format, is_empty_file, missing_file_reason
 from hdrcam.io.opencv_image import opencv_image
-from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
+from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance_stored
 from hdrcam.io.tiff_image import read_tiff_rgb
 
 HDR_SUFFIXES = (".exr", *RADIANCE_SUFFIXES)
+SUFFIX_FORMATS = {".exr": "OpenEXR", ".hdr": "Radiance", ".pic": "Radiance", ".tif": "TIFF", ".tiff": "TIFF"}
+# an image's format where its first bytes match none (file_magic.file_format): that format's reader names the fault
 
 
 def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak: bool = False) -> np.ndarray:
-    """H x W x 3 float32 linear RGB from an OpenEXR (by its magic number, whatever its name), Radiance (by its
-    magic; hdrcam.io.radiance) or float TIFF file; NaN/Inf and negatives are refused/zeroed, 8/16-bit images
-    (display images) refused. A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog
+    """H x W x 3 float32 linear Rec. 709 RGB from an OpenEXR, Radiance (hdrcam.io.radiance) or float TIFF file,
+    each known by its first bytes whatever its name (by its suffix where they match no format: that reader says
+    what is wrong; hdrcam.io.file_magic); NaN/Inf and negatives are refused/zeroed, 8/16-bit images (display
+    images) refused, and so are values that the conversion from a file's primaries takes beyond float32.
+    A luminance-only photograph (an EXR whose only colour data is Y, e.g. OpenEXR's Fog
     and Garden) is read as grey, R = G = B = Y. ``infinite_as_peak``: +Inf pixels (light beyond the format: a
     half-float sun above 65504 is stored as Inf) are taken as the image's largest finite value, with a warning,
     instead of refused."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: a folder, not an image file" if path.is_dir() else f"{path}: no such file")
-    primaries = None  # an EXR's, converted to Rec. 709 after +Inf is dealt with (a matrix turns it into NaN)
-    if path.suffix.lower() == ".exr" or is_exr_file(path):
+        raise InputError(f"{path}: {missing_file_reason(path)}")
+    if is_empty_file(path):
+        raise InputError(f"{path}: an empty file (0 bytes)")
+    kind = file_format(path) or SUFFIX_FORMATS.get(path.suffix.lower())
+    primaries = None  # converted to Rec. 709 after +Inf is dealt with (a matrix turns it into NaN)
+    if kind == "OpenEXR":
         exr = read_exr(path, to_rec709=False)
         if "Y" not in exr.channels or {"R", "G", "B"} <= set(exr.channels):
             image, primaries = exr.rgb(), exr.attributes.get("chromaticities")
         else:
             image = np.repeat(exr.channels["Y"][..., None], 3, axis=-1)
-    elif path.suffix.lower() in (".tif", ".tiff"):
+    elif kind == "TIFF":
         image = read_tiff_rgb(path)
         _refuse_display_image(path, image)
         image = image.astype(np.float32)
-    elif is_radiance_file(path):
-        image = read_radiance(path)
-    else:
+    elif kind == "Radiance":
+        image, primaries = read_radiance_stored(path)
+    else:  # PNG, JPEG and the other formats OpenCV reads: display images, refused below, or named
         image = opencv_image(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
         if image is None:
             raise InputError(f"{path}: cannot read as an HDR image (OpenEXR, Radiance .hdr or a float TIFF)")
@@ -56,10 +64,23 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
                       f"taken as the image's largest finite value, {peak:.6g}")
         image = np.where(finite, image, np.float32(peak))
     if primaries is not None:
-        image = in_rec709(image, primaries)
+        image = _in_rec709_within_float32(path, image, primaries)
     if warn_negative:
         warn_negative_radiance(path, image)
     return np.clip(image, 0.0, None)  # negatives (resampling ringing, out-of-gamut colours) are not light
+
+
+def _in_rec709_within_float32(path: Path, image: np.ndarray, primaries) -> np.ndarray:
+    """``image`` converted from ``primaries`` to Rec. 709 (hdrcam.colorimetry.in_rec709); InputError naming the
+    file where the conversion takes values beyond float32 (3.4e38): a wide-gamut value near the limit overflowed
+    to Inf with numpy's own warning, and evaluate then failed with an internal error on the NaN it made."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        converted = in_rec709(image, primaries)
+    if converted is not image and not np.isfinite(converted).all():
+        raise InputError(f"{path}: its values (up to {float(np.abs(image).max()):.4g}) leave float32's range "
+                         f"({np.finfo(np.float32).max:.3g}) once its primaries are converted to Rec. 709; scale the "
+                         "image down (its absolute scale does not matter to hdrcam)")
+    return converted
 
 
 def _refuse_display_image(path: Path, image: np.ndarray) -> None:

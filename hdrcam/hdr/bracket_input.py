@@ -125,7 +125,7 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                   ("CFA pattern", meta.cfa_pattern, reference.cfa_pattern),
                   ("ISO", meta.iso, reference.iso),
                   ("aperture", _rounded(meta.f_number), _rounded(reference.f_number)))
-        _refuse_differences(meta, reference, checks)
+        refuse_differences(meta, reference, checks)
     depths = [bit_depth_class(frame.metadata.white_level_dn) for frame in frames]
     if len(set(depths)) > 1:
         # the depth most frames have; on a tie the shortest frame's
@@ -137,11 +137,11 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
                          "bracket at one bit depth")
     for frame in frames[1:]:  # after the bit depth check, which says more of a white level of another depth
         pairs = zip(sensor_fingerprint(frame.metadata), sensor_fingerprint(reference))  # none for a named camera
-        _refuse_differences(frame.metadata, reference, [(what, value, expected)
+        refuse_differences(frame.metadata, reference, [(what, value, expected)
                                                         for (what, value), (_, expected) in pairs])
     exposures = [f.metadata.exposure_s for f in frames]
     if len(set(exposures)) != len(exposures):
-        _refuse_copies(frames)
+        refuse_repeated_files([frame.metadata for frame in frames])
         names = [f.metadata.path.name for f in frames]
         shown = [str(f.metadata.path) if names.count(f.metadata.path.name) > 1 else f.metadata.path.name
                  for f in frames]  # frames of the same name from two folders: their paths tell them apart
@@ -154,13 +154,21 @@ def read_bracket(sources: list[Path], kind: str = "light") -> list[RawFrame]:
     return frames
 
 
-def _refuse_copies(frames: list[RawFrame]) -> None:
-    """InputError naming a frame that is a byte-identical copy of another (``frame (1).dng`` beside
-    ``frame.dng``)."""
-    copies = identical_copies([frame.metadata for frame in frames])
+def refuse_repeated_files(frames: list[RawMetadata], what: str = "the bracket") -> None:
+    """InputError naming a frame given twice (the same path, or a link to another frame's file) or that is a
+    byte-identical copy of another (``frame (1).dng`` beside ``frame.dng``): one exposure counted twice.
+    ``what``: where to remove it from."""
+    seen: dict[Path, int] = {}
+    for index, meta in enumerate(frames):
+        original = frames[seen.setdefault(meta.path.resolve(), index)].path
+        if seen[meta.path.resolve()] != index:
+            same = "given twice" if original == meta.path else \
+                f"the same file as {original.name} (one links to the other)"
+            raise InputError(f"{meta.path}: {same}; give each frame once")
+    copies = identical_copies(frames)
     if copies:
         copy, original = copies[0]
-        raise InputError(f"{copy}: a copy of {original.name} (identical sha256); remove it from the bracket")
+        raise InputError(f"{copy}: a copy of {original.name} (identical sha256); remove it from {what}")
 
 
 def _check_bracket_memory(paths: list[Path]) -> None:
@@ -175,12 +183,13 @@ def _check_bracket_memory(paths: list[Path]) -> None:
                          "fuse fewer frames, or free memory")
 
 
-def _refuse_differences(meta: RawMetadata, reference: RawMetadata, checks) -> None:
-    """InputError at the first (property, frame's value, reference's value) of ``checks`` whose values differ."""
+def refuse_differences(meta: RawMetadata, reference: RawMetadata, checks,
+                       rule: str = "a bracket varies only the shutter") -> None:
+    """InputError at the first (property, frame's value, reference's value) of ``checks`` whose values differ;
+    ``rule``: what the frames must share, said after them."""
     for what, value, expected in checks:
         if value != expected:
-            raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; "
-                             "a bracket varies only the shutter")
+            raise InputError(f"{meta.path}: {what} {value} differs from {reference.path.name}'s {expected}; {rule}")
 
 
 def _rounded(f_number: float | None) -> float | None:

@@ -25,6 +25,14 @@ the label stands, with the reason. The upper bound depends on the ratio, so each
 REFINEMENTS times, starting from the labels. A ratio more than IMPLAUSIBLE_STOPS from its label is used, with a
 warning.
 
+Given the frames' names, a pair whose data contradict the bracket is refused (InputError naming the frame): a longer
+frame no brighter than the shorter one where a ratio follows from the data (a slope or sums that clear the bounds
+above: not noise or a black-level error), or a shorter frame with no signal above black where the third frame,
+scaled by the labels, says it should average at least NO_LIGHT_EXPECTED_DN (a capped lens, a failed shutter or
+flash, a frame of another scene). Its full inverse-variance weight would pull the merge down by its error (a
+black middle frame of four left three patches at 0.075 of their radiance). A pair with too few pixels or too
+little signal to tell keeps its label.
+
 Signals are in DN above black; exposures in seconds.
 
 Speed: one pass over strips of rows (a thread pool's map) serves every refinement. Per pair it sums the
@@ -37,6 +45,7 @@ products (OpenCV; not BLAS, whose own threads would compete with the pool's).
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -44,6 +53,7 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 import numpy as np
 
+from hdrcam.errors import InputError
 from hdrcam.hdr.neighbour_mean import NEIGHBOUR_ROWS, neighbour_mean
 
 MIN_RATIO_SAMPLES = 200
@@ -55,6 +65,8 @@ ADC_ZERO_SIGMAS = 2.0  # the shorter frame's prediction above the ADC's zero (mo
 SLOPE_ERROR = 0.01  # the slope's relative standard error, at most
 SPREAD_PRECISION = 1e-6  # of the sum of z^2: a spread below it is rounding (float32 products: ~1e-7), not contrast
 SUMS_MIN_SIGNAL_DN = 100.0  # the shorter frame's mean signal for the ratio of sums: a DN of black error, 1 %
+NO_LIGHT_EXPECTED_DN = 30.0  # a frame expected this far above black that averages at or below it recorded no
+# light: more than a black level's error (per-row BlackLevelDeltaV offsets averaged into one level: up to 25 DN)
 IMPLAUSIBLE_STOPS = 0.5  # a working shutter is off its label by a few per cent; half a stop is 41 %
 SUMS = 10  # per pair: count, and the sums of y_k, y_k+1, z, z y_k, z y_k+1, z^2, y_k^2, y_k+1^2, y_k y_k+1
 
@@ -62,14 +74,15 @@ StripData = Callable[[slice], tuple[list[np.ndarray], list[np.ndarray]]]
 
 
 def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_s: np.ndarray, threshold_dn: float,
-                       noise_floor_dn: float, notes: list[str], pool: ThreadPoolExecutor, *, black_dn: float = np.inf
-                       ) -> np.ndarray:
+                       noise_floor_dn: float, notes: list[str], pool: ThreadPoolExecutor, *, black_dn: float = np.inf,
+                       names: list[str] | None = None) -> np.ndarray:
     """Estimated exposure per frame (seconds, shortest first; geometric mean equal to the labels').
 
     ``strip_data(rows)``: every frame's float32 signal (DN above black) on those rows and its samples at or
     above the clip threshold ``threshold_dn`` (bool; not dilated: each sample stands alone here);
     ``noise_floor_dn``: the read noise of one signal; ``black_dn``: the black level, the signal of the ADC's zero
-    below it (the default: far). One line per pair is appended to ``notes``.
+    below it (the default: far). One line per pair is appended to ``notes``. ``names``: the frames' paths, to
+    refuse a frame whose data contradict the bracket (module docstring); without them its pair keeps its label.
     """
     floor_dn = ADC_ZERO_SIGMAS * noise_floor_dn - black_dn  # the shorter frame's prediction, clear of the ADC's zero
     pairs = len(labelled_s) - 1
@@ -127,6 +140,7 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
     ratios, refining = list(labelled), list(range(pairs))
     counts, methods = [0] * pairs, [""] * pairs  # each pair's pixels and method at its last refinement
     unestimated: dict[int, str] = {}  # pair -> why its labelled ratio is used
+    contradictions: dict[int, str] = {}  # pair -> the refusal naming its contradicting frame (with ``names``)
     for _ in range(REFINEMENTS):
         bounds = {k: bound_dn(ratios[k]) for k in refining}
         outside = {k: bound for k, bound in bounds.items() if not bands[k][0] <= bound <= bands[k][1]}
@@ -142,8 +156,14 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
                 ratios[k] = ratio
                 continue
             unestimated[k] = why_not
+            if names is not None:
+                contradiction = _contradiction(totals[k], k, labelled, names)
+                if contradiction:
+                    contradictions[k] = contradiction
             ratios[k] = labelled[k]
             refining.remove(k)
+    if contradictions:
+        raise InputError(contradictions[min(contradictions)])
     for k in range(pairs):
         if k in unestimated:
             notes.append(f"frames {k}-{k + 1}: {unestimated[k]}; using the labelled ratio {labelled[k]:.4f}")
@@ -162,9 +182,10 @@ def estimate_exposures(strip_data: StripData, row_strips: list[slice], labelled_
     return relative * scale
 
 
-def _ratio(totals: np.ndarray) -> tuple[float | None, str, str]:
+def _ratio(totals: np.ndarray, require_brighter: bool = True) -> tuple[float | None, str, str]:
     """A pair's ratio from its sums (module docstring), how it was found ("slope" or "sums"), and why none
-    follows from them when it is None."""
+    follows from them when it is None; ``require_brighter`` False: also a ratio of 1 or less (what the data say,
+    though no bound follows from it)."""
     count, shorter, longer, instrument, instrument_shorter, instrument_longer, instrument_squared, \
         shorter_squared, longer_squared, shorter_longer = totals
     if count < MIN_RATIO_SAMPLES:
@@ -191,10 +212,33 @@ def _ratio(totals: np.ndarray) -> tuple[float | None, str, str]:
         return None, "", (f"too little contrast for a slope (standard error {_percent(error, slope)} over "
                           f"{int(count)} pixels) and signal for the sums (mean {mean_dn:.3g} DN: a DN of "
                           f"black-level error moves them {100 / mean_dn:.0f} %)")
-    if numerator <= denominator:  # no bound follows from a longer frame that is no brighter
+    if numerator <= denominator and require_brighter:  # no bound follows from a longer frame that is no brighter
         return None, "", (f"the longer frame is no brighter over {int(count)} usable pixels (ratio "
                           f"{numerator / denominator:.4f})")
     return float(numerator / denominator), how, ""
+
+
+def _contradiction(totals: np.ndarray, k: int, labelled: list[float], names: list[str]) -> str:
+    """The refusal of pair k's contradicting frame (module docstring), or "" where its data say nothing against
+    the labels (too few pixels, too little signal)."""
+    count, shorter, longer, instrument = totals[:4]
+    if count < MIN_RATIO_SAMPLES:
+        return ""
+    measured, _, _ = _ratio(totals, require_brighter=False)
+    why = "it recorded no light (a capped lens, a failed shutter or flash), or it is another scene's or mislabelled; " \
+        "remove it from the bracket"
+    if measured is not None and measured <= 1.0:  # a bracket is sorted by exposure: every labelled ratio is > 1
+        return (f"{names[k + 1]}: exposed {labelled[k]:.3g} times as long as {os.path.basename(names[k])}, yet no "
+                f"brighter over {int(count)} pixels usable in both (ratio {measured:.3g}): {why}")
+    other = _third_frame(k, len(names))
+    if shorter > 0 or other < 0:
+        return ""
+    scale = 1.0 / (labelled[k] * labelled[k + 1]) if other > k else labelled[k - 1]  # the third frame's to frame k's
+    expected_dn = instrument / count * scale
+    if expected_dn < NO_LIGHT_EXPECTED_DN:  # too dim to tell a frame without light from a black-level error
+        return ""
+    return (f"{names[k]}: no signal above black over {int(count)} pixels where {os.path.basename(names[other])} "
+            f"says, by the labelled exposures, about {expected_dn:.0f} DN: {why}")
 
 
 def _percent(error: float, slope: float) -> str:

@@ -157,12 +157,35 @@ def fuse(sources: list[Path], camera: CameraSpec, *, darks: Path | None = None, 
         if meta.white_balance_source == DAYLIGHT_ASSUMED:
             warnings.warn(f"{meta.path.name}: the file records no as-shot white (DNG AsShotNeutral or "
                           "AsShotWhiteXY): the white balance is assumed to be daylight (D65)")
+        _warn_if_whites_differ(frame_metadata)
         matrix = camera_to_srgb_matrix(meta.xyz_to_camera, meta.as_shot_neutral).astype(np.float32)
         transformed(rgb, matrix)
         if variance is not None:
             transformed(variance, matrix ** 2)
         colour = "linear sRGB (D65)"
     return FusedImage(rgb, clipped, variance, merge, frame_metadata, colour, repaired)
+
+
+NEUTRAL_ROUNDING = 1e-3  # relative: as-shot neutrals that differ less are one white, written with other rounding
+
+
+def _warn_if_whites_differ(frame_metadata: list[RawMetadata]) -> None:
+    """Warn when the frames' as-shot whites (camera RGB of white) differ beyond rounding (auto white balance between
+    shots): the colours follow the shortest frame's, the first of ``frame_metadata``."""
+    groups: list[list[RawMetadata]] = []  # frames of one white (within rounding), in frame order
+    for meta in frame_metadata:
+        group = next((group for group in groups if np.allclose(meta.as_shot_neutral, group[0].as_shot_neutral,
+                                                               rtol=NEUTRAL_ROUNDING, atol=0.0)), None)
+        if group is None:
+            groups.append([meta])
+        else:
+            group.append(meta)
+    if len(groups) > 1:
+        whites = "; ".join(f"{', '.join(meta.path.name for meta in group)}: "
+                           f"{' '.join(f'{v:.4g}' for v in group[0].as_shot_neutral)}" for group in groups)
+        first = frame_metadata[0].path.name
+        warnings.warn(f"the frames' as-shot whites (camera RGB) differ ({whites}; auto white balance between "
+                      f"shots?): the colours follow {first}'s, the shortest frame's")
 
 
 def _repair_listed(merge: BayerMerge, bad_pixels: BadPixelList, meta: RawMetadata) -> int:

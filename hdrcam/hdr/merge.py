@@ -197,7 +197,7 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
     if len(frames) > MAX_FRAMES:
         raise InputError(f"{len(frames)} frames: a bracket of at most {MAX_FRAMES} merges (the usable-frame bit mask)")
     meta = frames[0].metadata
-    iso = meta.iso or 100.0
+    iso = meta.iso or _assumed_iso(frames)
     black = float(np.mean(meta.black_level_dn))
     clip_tile = clip_level_tile_dn(frames)
     white = sensor_white_dn(meta.white_level_dn, black, clip_tile)
@@ -258,7 +258,8 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
 
     with ThreadPoolExecutor(threads or worker_threads()) as pool:
         exposures = estimate_exposures(bracket.signals_and_clipped, row_strips, nominal_true, threshold,
-                                       np.sqrt(read_variance), notes, pool, black_dn=float(black_tile.min())) \
+                                       np.sqrt(read_variance), notes, pool, black_dn=float(black_tile.min()),
+                                       names=[str(frame.metadata.path) for frame in frames]) \
             if estimate_ratios and len(frames) > 1 else nominal_true.copy()
         list(pool.map(merge_strip, row_strips))
     if not np.array_equal(nominal_true, labelled):
@@ -270,6 +271,19 @@ def merge_bayer(frames: list[RawFrame], camera: CameraSpec, *, darks: list[RawFr
                      "known to be nominal): " + ", ".join(f"{t:.6g}" for t in labelled) + " s")
     return BayerMerge(rate, variance, usable_frames == 0, exposures, labelled, clip, clip_tile, notes,
                       usable_frames, noise, read_variance, to_relative)
+
+
+ASSUMED_ISO = 100.0
+
+
+def _assumed_iso(frames: list[RawFrame]) -> float:
+    """ASSUMED_ISO for a bracket whose files record no ISO (mixed ISOs are refused when it is read), with a
+    warning: the result's unit is full wells per second at ISO 100, so a bracket shot at ISO 400 would read 4x
+    too bright."""
+    names = frames[0].metadata.path.name + (" and the bracket's other frames" if len(frames) > 1 else "")
+    warnings.warn(f"{names}: no ISO recorded; ISO {ASSUMED_ISO:g} is assumed, and the radiance (full wells per "
+                  f"second at ISO {ASSUMED_ISO:g}) scales with it: frames shot at ISO 400 would read 4x too bright")
+    return ASSUMED_ISO
 
 
 def _warn_if_white_unconfirmed(longest: RawFrame, white_dn: float, black_dn: float, clip_tile_dn: np.ndarray) -> None:

@@ -35,7 +35,7 @@ from hdrcam.colorimetry import REC709_CHROMATICITIES, in_rec709, normalised_prim
 from hdrcam.errors import InputError, escaped_name
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
-from hdrcam.io.file_magic import starts_with
+from hdrcam.io.file_magic import EXR_MAGIC, missing_file_reason, not_format_reason, starts_with
 from hdrcam.limits import check_image_size, check_memory
 from hdrcam.parallel import worker_threads
 
@@ -137,8 +137,10 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
     samples are clipped per stored channel, which a matrix would mix."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: no such file")
+        raise InputError(f"{path}: {missing_file_reason(path)}")
     data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
+    if not data.startswith(EXR_MAGIC):  # OpenEXR would name its own stream, "<python_buffer>", not the file
+        raise InputError(f"{path}: {not_format_reason(path, 'OpenEXR')}")
     try:
         _check_decoded_size(path, _part_headers(data))
         with _openexr_quiet(), OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr_file:
@@ -279,7 +281,6 @@ def _with_image_layer_as_rgb(path: Path, channels: dict[str, np.ndarray]) -> dic
             **{name: plane for name, plane in channels.items() if name not in renamed.values()}}
 
 
-EXR_MAGIC = b"\x76\x2f\x31\x01"
 _quieting = threading.Lock()  # sys.stdout is the process's: one reader at a time swaps it
 
 

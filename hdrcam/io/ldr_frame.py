@@ -11,13 +11,16 @@
   attribute is not applied: the frame is clipped per stored channel, which a matrix would mix, and the network
   works in the camera's RGB; TIFF and PNG primaries are not applied either). A frame whose lossy compression
   (DWAA, DWAB, B44, ...) rang past white or black is refused naming the codec.
-- Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance).
-- 16-bit TIFF / PNG: linear values / 65535 (a warning when the brightest value, below white, holds many pixels:
-  clipping at a lower white); float TIFF: linear, as EXR. 8-bit files, JPEGs, PNGs whose colour chunks declare
-  a non-linear transfer (sRGB, a gAMA other than 1, a cICP transfer other than linear) and TIFFs and PNGs whose
-  ICC profile's tone curves are not the identity (hdrcam.io.icc_profile: gamma, tables, LUT-based or damaged
-  profiles) are refused (gamma-encoded, or not known to be linear). A file that starts like an EXR, a Radiance
-  file or a JPEG is taken as one whatever its name.
+- Radiance .hdr: linear RGB as EXR (hdrcam.io.radiance), in its stored primaries too (``PRIMARIES=`` and XYZE
+  not applied; EXPOSURE and COLORCORR, scale factors, divided out).
+- 16-bit TIFF / PNG: linear values / 65535, a TIFF's of fewer bits / the white its BitsPerSample states (4095 for
+  12 bits; refused where a MaxSampleValue tag says another: hdrcam.io.tiff_image.tiff_white_level), with a
+  warning when the brightest value, below white, holds many pixels: clipping at a lower white; float TIFF:
+  linear, as EXR. 8-bit files, JPEGs, PNGs whose colour chunks declare a non-linear transfer (sRGB, a gAMA other
+  than 1, a cICP transfer other than linear) and TIFFs and PNGs whose ICC profile's tone curves are not the
+  identity (hdrcam.io.icc_profile: gamma, tables, LUT-based or damaged profiles) are refused (gamma-encoded, or
+  not known to be linear). A file is known by its first bytes (EXR, Radiance, JPEG, PNG, TIFF) whatever its
+  name, by its suffix where they match none (:func:`frame_format`); an empty file is refused as one.
 Frames with NaN/Inf or values above 1 (an HDR image, not a capture) are one-line errors. ``read_ldr_capture`` also
 repairs a camera's listed sensor defects (hdrcam.io.bad_pixels): a RAW file's in its mosaic before demosaicing.
 """
@@ -34,18 +37,15 @@ import numpy as np
 from hdrcam.errors import InputError
 from hdrcam.io.bad_pixels import BadPixelList, repair_mosaic, repair_rgb
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
-from hdrcam.io.exr import exr_orientation, is_exr_file, lossy_compression, read_exr
-from hdrcam.io.file_magic import starts_with
+from hdrcam.io.exr import exr_orientation, lossy_compression, read_exr
+from hdrcam.io.file_magic import file_format, is_empty_file, missing_file_reason
 from hdrcam.io.opencv_image import opencv_image
 from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
-from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance
+from hdrcam.io.radiance import read_radiance
 from hdrcam.io.raw import RawFrame, read_raw, warn_shading_not_applied
 from hdrcam.io.raw_clipping import tiled
-from hdrcam.io.tiff_image import read_tiff_rgb, tiff_nonlinear_encoding
+from hdrcam.io.tiff_image import read_tiff_rgb, tiff_nonlinear_encoding, tiff_white_level
 
-IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
-GAMMA_SUFFIXES = (".jpg", ".jpeg")
-JPEG_MAGIC = b"\xff\xd8\xff"
 LDR_TOLERANCE = 1.001  # values up to this are rounding; above it the file is not an LDR capture
 NEGATIVE_LDR_TOLERANCE = 0.01  # of white below black: read noise is ~1e-4 of white, so further is not a capture
 
@@ -82,24 +82,27 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
     dcraw list, :mod:`hdrcam.io.bad_pixels`) repaired: a RAW file's in its Bayer mosaic before demosaicing,
     counted for the frame's capture time; an EXR's, TIFF's or PNG's per pixel after it (every listed pixel)."""
     path = Path(path)
+    if path.exists() and not path.is_file() and not path.is_dir():  # /dev/null, a FIFO: not "does not exist"
+        raise InputError(f"{path}: {missing_file_reason(path)}")
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
     suffix, orientation, exr, bad, neutral = path.suffix.lower(), 1, False, None, (1.0, 1.0, 1.0)
-    if suffix == ".exr" or is_exr_file(path):
+    if (kind := frame_format(path, suffix)) == "OpenEXR":  # by its first bytes, whatever its name
         image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
         rgb, orientation, exr = image.rgb(), exr_orientation(image.attributes), True
-    elif suffix in RADIANCE_SUFFIXES or is_radiance_file(path):
-        rgb = read_radiance(path)  # linear; an HDR photograph is refused below (values above white)
-    elif suffix in GAMMA_SUFFIXES or starts_with(path, JPEG_MAGIC):
+    elif kind == "Radiance":  # linear; an HDR photograph is refused below (values above white)
+        rgb = read_radiance(path, to_rec709=False)  # in its stored primaries, as an EXR
+    elif kind == "JPEG":
         raise InputError(f"{path}: a JPEG is 8-bit and gamma-encoded, not linear; give a RAW file, an EXR or a "
                          "16-bit TIFF/PNG")
-    elif suffix in IMAGE_SUFFIXES:
-        image = _rgb_samples(path, suffix)
+    elif kind in ("TIFF", "PNG"):
+        image = _rgb_samples(path, kind)
         if image.dtype.kind == "f":
             rgb = image.astype(np.float32)  # linear, as EXR
         elif image.dtype == np.uint16:
-            rgb = image.astype(np.float32) / 65535.0
-            _warn_plateau_below_white(path, image)
+            white = tiff_white_level(path) if kind == "TIFF" else 65535  # 4095 for a 12-bit TIFF
+            rgb = image.astype(np.float32) / float(white)
+            _warn_plateau_below_white(path, image, white)
         elif image.dtype == np.uint8:
             raise InputError(f"{path}: uint8 pixels are gamma-encoded, not linear; give a 16-bit TIFF/PNG, "
                              "an EXR or a RAW file")
@@ -133,6 +136,22 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
     return LdrCapture(rgb, orientation, int(bad.sum()), neutral)
 
 
+SUFFIX_FORMATS = {".exr": "OpenEXR", ".hdr": "Radiance", ".pic": "Radiance", ".tif": "TIFF", ".tiff": "TIFF",
+                  ".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}  # a frame's format where its first bytes say none
+
+
+def frame_format(path: Path, suffix: str) -> str | None:
+    """The format the frame file at ``path`` (a regular file; ``suffix`` its suffix, lower case) is read as, a name
+    of hdrcam.io.file_magic.FORMAT_MAGICS: the one its first bytes show, whatever its name, else the one its suffix
+    names (SUFFIX_FORMATS; that reader then says what is wrong); None for a RAW file (LibRaw's). A TIFF is read as
+    one only where its suffix is an image format's: DNG and most RAW formats are TIFF files, for LibRaw. InputError
+    for an empty file."""
+    if is_empty_file(path):
+        raise InputError(f"{path}: an empty file (0 bytes)")
+    found, named = file_format(path), SUFFIX_FORMATS.get(suffix)
+    return named if found is None or (found == "TIFF" and named is None) else found
+
+
 def _warn_unrepaired(path: Path, unrepaired: int) -> None:
     if unrepaired:
         warnings.warn(f"{path}: {unrepaired} listed bad pixels have no good neighbour of their colour (a cluster "
@@ -152,15 +171,15 @@ def _lossy_advice(compression: str | None, beyond: float) -> str:
             "clipped pixels are no longer exact; save the frame losslessly (ZIP, PIZ or none)")
 
 
-def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
-    """A TIFF's or PNG's H x W x 3 samples in R, G, B order and their stored type (extra samples dropped)."""
-    encoding = declared_nonlinear_encoding(path) if suffix == ".png" else tiff_nonlinear_encoding(path)
+def _rgb_samples(path: Path, kind: str) -> np.ndarray:
+    """A TIFF's or PNG's (``kind``) H x W x 3 samples in R, G, B order and their stored type (extra samples
+    dropped)."""
+    encoding = declared_nonlinear_encoding(path) if kind == "PNG" else tiff_nonlinear_encoding(path)
     if encoding:
-        kind = "PNG" if suffix == ".png" else "TIFF"
         raise InputError(f"{path}: the {kind} declares {encoding}: hdrcam reads linear values only (these are "
                          "gamma-encoded, or not known to be linear); give a linear 16-bit TIFF/PNG, an EXR or the RAW "
                          "file")
-    if suffix != ".png":
+    if kind == "TIFF":
         return read_tiff_rgb(path)
     if grey := grey_png_kind(path):
         raise InputError(f"{path}: a {grey} PNG (no colour samples): not an RGB image")
@@ -171,18 +190,18 @@ def _rgb_samples(path: Path, suffix: str) -> np.ndarray:
 
 
 PLATEAU_MIN_PIXELS = 16  # pixels sharing the brightest value, below white, that look like clipping
-PLATEAU_BELOW_WHITE = 0.99  # of 65535: brighter maxima count as white (reconstruct's clip level)
+PLATEAU_BELOW_WHITE = 0.99  # of white: brighter maxima count as white (reconstruct's clip level)
 
 
-def _warn_plateau_below_white(path: Path, image: np.ndarray) -> None:
-    """Warn when a 16-bit frame's brightest value, below 65535, holds many pixels: clipping at a lower white
+def _warn_plateau_below_white(path: Path, image: np.ndarray, white: int = 65535) -> None:
+    """Warn when an integer frame's brightest value, below ``white``, holds many pixels: clipping at a lower white
     (14-bit data in a 16-bit file reaches 16383), which reconstruct does not see as clipped."""
     brightest = int(image.max())
     count = int(np.count_nonzero(image.max(axis=-1) == brightest))
-    if brightest < PLATEAU_BELOW_WHITE * 65535 and count >= PLATEAU_MIN_PIXELS:
-        warnings.warn(f"{path}: {count} pixels share the brightest value, {brightest} of 65535 - clipping below "
-                      "white? hdrcam takes 65535 as white, so they are not treated as clipped; rescale the file so "
-                      "white is 65535")
+    if brightest < PLATEAU_BELOW_WHITE * white and count >= PLATEAU_MIN_PIXELS:
+        warnings.warn(f"{path}: {count} pixels share the brightest value, {brightest} of {white} - clipping below "
+                      f"white? hdrcam takes {white} as white, so they are not treated as clipped; rescale the file "
+                      f"so white is {white}")
 
 
 def raw_relative_rgb(frame: RawFrame, demosaic_method: str = DEFAULT_METHOD, bad: np.ndarray | None = None

@@ -13,6 +13,11 @@ m * 2 ** (e - 136), then turned and mirrored into the image, then:
   times them, so they are divided out;
 - ``PRIMARIES=``: RGB in those primaries, converted to Rec. 709 / D65 (all-zero primaries, as some writers store,
   count as absent; absent means Rec. 709, as files in the wild are).
+
+``to_rec709=False`` keeps the values in the primaries they were stored in (XYZE as XYZ), as hdrcam.io.exr does for
+a captured frame: its samples are clipped per stored channel, which a matrix would mix (a red light clipped in red
+alone read as -0.47 in green and was refused as damaged). :func:`read_radiance_stored` gives the stored values and
+their chromaticities, for a caller that converts them itself (hdrcam.data.hdr_folder, after its finite checks).
 """
 
 from __future__ import annotations
@@ -26,13 +31,12 @@ import numpy as np
 from hdrcam.colorimetry import EQUAL_ENERGY_XYZ_CHROMATICITIES, in_rec709
 from hdrcam.errors import InputError
 from hdrcam.io.c_stderr import c_stderr_silenced
-from hdrcam.io.file_magic import starts_with
+from hdrcam.io.file_magic import RADIANCE_MAGIC, starts_with
 from hdrcam.io.rgbe import (MAX_RUN_LENGTH_SCANLINE, MIN_RUN_LENGTH_SCANLINE, DamagedPixels, colr_values,
                             decode_scanlines)
 from hdrcam.limits import check_image_size
 
 RADIANCE_SUFFIXES = (".hdr", ".pic")  # .pic: Radiance's own
-RADIANCE_MAGIC = b"#?"
 FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
 _RESOLUTION = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
 DECODED_BYTES_PER_PIXEL = 36  # OpenCV's float BGR image, its RGB copy and the corrected one (float32 each)
@@ -45,9 +49,18 @@ def is_radiance_file(path: Path) -> bool:
     return starts_with(path, RADIANCE_MAGIC)
 
 
-def read_radiance(path: Path) -> np.ndarray:
-    """H x W x 3 float32 linear Rec. 709 / D65 radiance of a Radiance file (module docstring); InputError naming
-    the file and what is wrong with it otherwise."""
+def read_radiance(path: Path, *, to_rec709: bool = True) -> np.ndarray:
+    """H x W x 3 float32 linear Rec. 709 / D65 radiance of a Radiance file (module docstring), or with
+    ``to_rec709`` False in the primaries it was stored in; InputError naming the file and what is wrong with it
+    otherwise."""
+    values, chromaticities = read_radiance_stored(path)
+    return in_rec709(values, chromaticities) if to_rec709 else values
+
+
+def read_radiance_stored(path: Path) -> tuple[np.ndarray, tuple[float, ...] | None]:
+    """H x W x 3 float32 linear radiance of a Radiance file in the primaries it was stored in (EXPOSURE and
+    COLORCORR divided out), and those primaries' chromaticities (red x, y, green x, y, blue x, y, white x, y:
+    PRIMARIES=, Radiance's equal-energy XYZ for XYZE, None for neither: Rec. 709)."""
     data = Path(path).read_bytes()
     header_end = data.find(b"\n\n", 0, MAX_HEADER_BYTES)
     crlf_end = data.find(b"\r\n\r\n", 0, header_end if header_end >= 0 else MAX_HEADER_BYTES)
@@ -112,8 +125,10 @@ def _format(path: Path, variables: list[list[bytes]]) -> str:
     return image_format
 
 
-def _corrected(path: Path, values: np.ndarray, image_format: str, variables: list[list[bytes]]) -> np.ndarray:
-    """The decoded values as Rec. 709 radiance: exposure and colour corrections divided out, primaries converted."""
+def _corrected(path: Path, values: np.ndarray, image_format: str, variables: list[list[bytes]]
+               ) -> tuple[np.ndarray, tuple[float, ...] | None]:
+    """The decoded values as radiance (exposure and colour corrections divided out) and their primaries'
+    chromaticities (read_radiance_stored)."""
     divisor = np.ones(3)
     primaries = None
     for name, value in variables:
@@ -146,4 +161,6 @@ def _corrected(path: Path, values: np.ndarray, image_format: str, variables: lis
                              f"{', '.join(f'{value:.3g}' for value in divisor)}, which put its radiance beyond "
                              "float32 (or below it); check the header")
         values = corrected.astype(np.float32)
-    return in_rec709(values, EQUAL_ENERGY_XYZ_CHROMATICITIES if image_format == FORMATS[1] else primaries)
+    if image_format == FORMATS[1]:
+        return values, EQUAL_ENERGY_XYZ_CHROMATICITIES
+    return values, None if primaries is None else tuple(float(number) for number in primaries)

@@ -89,6 +89,32 @@ def tiff_nonlinear_encoding(path: Path) -> str | None:
     return f"an ICC profile ({what})" if what else None
 
 
+MAX_SAMPLE_VALUE_TAG = 281  # MaxSampleValue (TIFF 6.0, section 8)
+
+
+def tiff_white_level(path: Path) -> int:
+    """The white level of the first full-resolution image's unsigned-integer samples, by its tags: 2 **
+    BitsPerSample - 1 (4095 for 12-bit samples, which tifffile gives as uint16 values up to 4095: divided by 65535
+    they read 16x too dark, and clipped pixels as unclipped). InputError where a MaxSampleValue tag names another
+    maximum: TIFF 6.0 makes it the largest value used, which a writer may mean as white (12-bit data in 16-bit
+    samples) or as the image's own brightest value, so where white lies is not known."""
+    import tifffile
+
+    try:
+        with _tifffile_quiet(), tifffile.TiffFile(path) as tiff:
+            page = _full_resolution_page(tiff)
+            bits, tag = int(page.bitspersample), page.tags.get(MAX_SAMPLE_VALUE_TAG)
+            stated = np.atleast_1d(tag.value).astype(np.int64) if tag is not None else None
+    except Exception as error:  # noqa: BLE001 - read_tiff_samples has read the file; this is the same file
+        raise InputError(f"{path}: cannot decode as TIFF ({type(error).__name__}: {error})") from None
+    white = 2 ** bits - 1
+    if stated is not None and np.any(stated != white):
+        raise InputError(f"{path}: the TIFF's MaxSampleValue tag says {', '.join(map(str, np.unique(stated)))} for "
+                         f"{bits}-bit samples (white {white}), so its white level is not known; save the frame "
+                         "with samples of as many bits as its data (white at the samples' largest value)")
+    return white
+
+
 def read_tiff_rgb(path: Path) -> np.ndarray:
     """A TIFF's H x W x 3 samples in R, G, B order and their stored type (extra samples such as alpha dropped);
     InputError naming the file when it holds fewer than three samples per pixel (grey)."""

@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import tifffile
 
 from hdrcam.cli import main
 from hdrcam.io.bad_pixels import read_bad_pixels
 from hdrcam.io.exr import read_exr
+from tests.io.realistic_dng import write_dng
 from tests.io.test_bad_pixels import DEAD, HOT, _frames_with_defects
 
 
@@ -72,3 +74,62 @@ def test_fuse_repairs_the_listed_hot_pixels_of_a_bracket(tmp_path, capsys):
                  "--profile", "simulated"]) == 0
     assert "37 listed bad pixels repaired" in capsys.readouterr().out
     assert read_exr(tmp_path / "hdr.exr").attributes["bad_pixels_repaired"] == 37
+
+
+def _refused(argv: list[str], out, capsys) -> str:
+    """The one error line of a bad-pixels run that must exit 1 and write nothing."""
+    from tests.faults.helpers import assert_failed_with_one_line, run
+
+    error = assert_failed_with_one_line(run(argv, capsys))
+    assert not out.exists()
+    return error
+
+
+def test_a_frame_counted_twice_is_refused(tmp_path, capsys):
+    """The same file twice, a byte-identical copy or a link to a frame in a folder counted as one more frame, so a
+    one-frame transient (a cosmic ray in one dark) was confirmed 'in every frame' and listed as a defect."""
+    import os
+    import shutil
+
+    frames = _frames_with_defects(tmp_path / "frames", 3)
+    out = tmp_path / "bad.txt"
+    assert _refused(["bad-pixels", frames[0], frames[1], frames[0], "--out", out], out, capsys) == \
+        f"hdrcam bad-pixels: error: {frames[0]}: given twice; give each frame once"
+    copy = shutil.copyfile(frames[1], tmp_path / "frames" / "f1 (1).dng")
+    assert _refused(["bad-pixels", tmp_path / "frames", "--out", out], out, capsys) == \
+        f"hdrcam bad-pixels: error: {copy}: a copy of f1.dng (identical sha256); remove it from the frames"
+    copy.unlink()
+    os.symlink("f0.dng", tmp_path / "frames" / "link-to-f0.dng")
+    assert _refused(["bad-pixels", tmp_path / "frames", "--out", out], out, capsys) == \
+        (f"hdrcam bad-pixels: error: {tmp_path / 'frames' / 'link-to-f0.dng'}: the same file as f0.dng (one links to "
+         "the other); give each frame once")
+
+
+def test_a_folders_files_that_are_not_raw_are_skipped_with_a_warning_as_fuse_skips_them(tmp_path, capsys):
+    """A JPEG beside each RAW (as cameras shoot RAW + JPEG) or a README made the whole folder refused."""
+    import warnings
+
+    frames = _frames_with_defects(tmp_path / "frames", 3)
+    (tmp_path / "frames" / "f0.JPG").write_bytes(b"\xff\xd8\xff\xe0" + bytes(200))
+    (tmp_path / "frames" / "README.txt").write_text("darks, lens capped\n")
+    listed = tmp_path / "bad.txt"
+    with warnings.catch_warnings(record=True) as warned:
+        warnings.simplefilter("always")
+        assert main(["bad-pixels", str(tmp_path / "frames"), "--out", str(listed)]) == 0
+    assert capsys.readouterr().out.strip() == f"{listed}: 2 bad pixels of 96 x 64 in 3 frames"
+    skipped = sorted(str(warning.message).split(":")[0] for warning in warned)
+    assert skipped == [f"skipped {tmp_path / 'frames' / name}" for name in ("README.txt", "f0.JPG")]
+    assert all("LibRaw does not open it as RAW" in str(warning.message) for warning in warned)
+    out = tmp_path / "named.txt"  # a file named on the command line must be RAW
+    error = _refused(["bad-pixels", *frames, tmp_path / "frames" / "f0.JPG", "--out", out], out, capsys)
+    named = tmp_path / "frames" / "f0.JPG"
+    assert error.startswith(f"hdrcam bad-pixels: error: {named}: LibRaw does not open it as RAW")
+
+
+def test_frames_of_another_camera_model_are_refused(tmp_path, capsys):
+    frames = _frames_with_defects(tmp_path / "frames", 2)
+    other = write_dng(tmp_path / "frames" / "other.dng", np.asarray(tifffile.imread(frames[1])), model="Testbody 2")
+    out = tmp_path / "bad.txt"
+    assert _refused(["bad-pixels", frames[0], other, "--out", out], out, capsys) == \
+        (f"hdrcam bad-pixels: error: {other}: camera model Acme Testbody 2 differs from f0.dng's Acme Testbody 1; bad "
+         "pixels are found in frames of one camera")

@@ -38,13 +38,15 @@ def sensor_dn(radiance: np.ndarray, exposure_s: float, rng: np.random.Generator,
 
 
 def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(512, 512, 512, 512),
-              white_dn: int = 16383, exposure_s: float = 0.01, iso: int = 100, colour_matrix=XYZ_TO_CAMERA,
+              white_dn: int = 16383, exposure_s: float = 0.01, iso: int | None = 100, colour_matrix=XYZ_TO_CAMERA,
+              as_shot_neutral=(0.5, 1.0, 0.7),
               make: str = "Acme", model: str = "Testbody 1", datetime: str = "2026:11:24 12:00:00",
               truncate_to: int | None = None, orientation: int | None = None, extra_tags=()) -> Path:
     """An uncompressed DNG; ``cfa`` of 4 letters (2 x 2), 16 (4 x 4) or 36 (6 x 6 X-Trans); ``colour_matrix`` None
     to leave ColorMatrix1 out; ``truncate_to`` cuts the file to that many bytes (a copy that broke off);
     ``orientation`` the EXIF Orientation code (6: a portrait shot, turn 90 degrees clockwise to display), None to
-    leave the tag out; ``extra_tags`` more tags, as tifffile's extratags."""
+    leave the tag out; ``iso`` None to leave ISOSpeedRatings out; ``as_shot_neutral`` the camera RGB of white;
+    ``extra_tags`` more tags, as tifffile's extratags."""
     side = round(len(cfa) ** 0.5)
     tags = [
         (33421, "H", 2, (side, side), True),
@@ -55,10 +57,10 @@ def write_dng(path: Path, bayer_dn: np.ndarray, *, cfa: str = "RGGB", black_dn=(
         (50714, "H", 4, tuple(int(b) for b in black_dn), True),
         (50717, "H", 1, (white_dn,), True),
         (50778, "H", 1, (21,), True),
-        (50728, "2I", 3, (5000, 10000, 10000, 10000, 7000, 10000), True),
+        (50728, "2I", 3, tuple(v for value in as_shot_neutral for v in (round(value * 10000), 10000)), True),
         (33434, "2I", 1, (round(exposure_s * 1_000_000), 1_000_000), True),
         (33437, "2I", 1, (40, 10), True),
-        (34855, "H", 1, (iso,), True),
+        *([(34855, "H", 1, (iso,), True)] if iso is not None else []),
         (271, "s", 0, make, True),
         (272, "s", 0, model, True),
     ]

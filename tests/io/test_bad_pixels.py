@@ -119,6 +119,8 @@ def test_frames_of_one_scene_are_refused_not_listed(tmp_path, shared_data):
 
     for name in ("a.ARW", "b.ARW"):
         shutil.copy(shared_data / "raw" / "sony-ilce7rm3-DSC2164.ARW", tmp_path / name)
+    with open(tmp_path / "b.ARW", "ab") as copy:  # not byte-identical: a byte copy is refused as a copy
+        copy.write(b"\0")
     with pytest.raises(InputError, match=r"340929 of 17957376 samples \(1\.9 %\) stand out .* dark frames and in "
                                          "evenly lit ones"):
         find_bad_pixels([tmp_path / "a.ARW", tmp_path / "b.ARW"])
