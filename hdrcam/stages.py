@@ -85,7 +85,12 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     if resume:
         saved = load_bracket(lights_manifest)
         saved_darks = load_bracket(darks_manifest) if darks_manifest.exists() else None
-        if saved.status == "complete" and (not darks or getattr(saved_darks, "status", "") == "complete"):
+        darks_status = saved_darks.status if saved_darks else None
+        darks_pending = darks_status == "incomplete" or (saved.options.get("darks") and darks_status is None)
+        if saved.status == "complete" and not darks and darks_pending:
+            raise InputError(f"--resume: {lights_manifest} was started with --darks and its darks are not "
+                             "complete; resume with --darks too")
+        if saved.status == "complete" and (not darks or darks_status == "complete"):
             raise InputError(f"{folder}: the capture is complete; nothing to resume")
     else:
         for manifest in (lights_manifest, darks_manifest):
@@ -109,18 +114,19 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
                                     hot_pixel_fraction=hot_pixel_fraction, exposure_error=exposure_error)
     options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed,
-               "profile_sha256": sha256_of(chosen.path)}
+               "profile_sha256": sha256_of(chosen.path), **({"darks": True} if darks else {})}
     truth = simulated.true_exposure_s if simulated else None
     started, shot, dark_bracket = time.perf_counter(), 0, None
     with device:
         say(f"camera: {device.model} ({camera}); profile {chosen.name}")
+        lights = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name, options=options,
+                                true_exposure_s=truth, show_progress=show_progress)
         if saved is not None and saved.status == "complete":
+            lights.check_same_request(saved, plan)  # darks only for lights shot as this run would shoot them
             bracket = saved
         else:
             kept = len(saved.frames) if saved else 0  # before shoot(), which goes on adding to ``saved``
-            bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name,
-                                     options=options, true_exposure_s=truth,
-                                     show_progress=show_progress).shoot(plan, resume=saved)
+            bracket = lights.shoot(plan, resume=saved)
             shot += len(bracket.frames) - kept
         _log_frames(say, bracket, folder)
         if darks:
