@@ -94,6 +94,14 @@ def _fraction(text: str, examples: str) -> float:
         raise argparse.ArgumentTypeError(f"expected {examples}, got {text!r}") from None
 
 
+def fraction_below_one(text: str) -> float:
+    """A fraction from 0 up to (not including) 1, such as 2e-5 or 0.02."""
+    value = _number(text)
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction from 0 up to (not including) 1, got {text!r}")
+    return value
+
+
 def share(text: str) -> float:
     """A share in (0, 1], such as 0.9 or 1."""
     value = _number(text)

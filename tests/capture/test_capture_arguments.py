@@ -160,6 +160,20 @@ def test_a_bracket_beyond_30_s_is_refused_before_the_folder_is_claimed(tmp_path,
     assert status == 1 and "--ev-step 2 or less" in capsys.readouterr().err and not out.exists()
 
 
+@pytest.mark.parametrize("option, value", [("--hot-pixels", "nan"), ("--hot-pixels", "1"), ("--hot-pixels", "-1e-5"),
+                                           ("--exposure-error", "1e400"), ("--exposure-error", "-0.1")])
+def test_defect_fractions_out_of_range_are_usage_errors_naming_the_option(tmp_path, capsys, option, value):
+    """They were exit 1 naming the API's fields (hot_pixel_fraction nan: ...) after the parse."""
+    out = tmp_path / "b"
+    with pytest.raises(SystemExit) as stopped:
+        main(["capture", "bracket", "--size", "64x48", "--out", str(out), f"{option}={value}"])
+    assert stopped.value.code == 2 and capsys.readouterr().err == (
+        f"hdrcam capture bracket: error: argument {option}: expected a fraction from 0 up to (not including) 1, "
+        f"got {value!r} (see 'hdrcam capture bracket --help')\n")
+    assert not out.exists()
+    assert parse(option, "0").__dict__[option[2:].replace("-", "_")] == 0.0
+
+
 # -- resume -------------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("failing_shot, shot_on_resume", [(2, 5), (5, 2)])  # 3 lights, then 3 darks
 def test_a_resumed_capture_counts_the_frames_it_shot(tmp_path, monkeypatch, failing_shot, shot_on_resume):
