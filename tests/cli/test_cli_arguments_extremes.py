@@ -137,3 +137,14 @@ def test_simulate_warns_when_a_scene_cannot_be_scaled_to_the_clipped_fraction_as
     with pytest.warns(UserWarning, match="0 % of its pixels exceed 1, not the 1.5 % asked"):
         assert main(["simulate", str(tmp_path / "uniform.exr"), "--psf", "dirac", "--out",
                      str(tmp_path / "f.exr")]) == 0
+
+
+@pytest.mark.parametrize("size", ["99999999999999999999", "9223372036854775807", "10000000000"])
+def test_psf_refuses_a_psf_size_beyond_any_memory_in_one_line(size, tmp_path, capsys):
+    """Past a C ssize_t the memory estimate itself crashed (OverflowError in next_fast_len, exit 3)."""
+    out = tmp_path / "p"
+    assert main(["psf", "--psf-size", size, "--out", str(out)]) == 1  # the default profile: the chirp-z model
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith("hdrcam psf: error: a chirp-z PSF of 3 wavelengths on ")
+    assert f" and {size} px at 7 points per pixel needs about " in error and " TB of memory, more than the " in error
+    assert not out.exists()
