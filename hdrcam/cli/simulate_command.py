@@ -14,7 +14,7 @@ import warnings
 from pathlib import Path
 
 from hdrcam.cli.arguments import fraction_between_0_and_1, positive_int, random_seed
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, missing_input
 from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.train.choices import FIXED_PSFS
 
@@ -67,7 +67,8 @@ def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(model.profile if model else "simulated")
     if arguments.psf:
         if arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
-            raise InputError(f"--psf {arguments.psf} does not exist")
+            raise missing_input(arguments.psf, "a PSF (EXR file)", option="--psf",
+                                missing=f"--psf {arguments.psf} does not exist")
         psf = fixed_psf(arguments.psf, profile)
     else:
         psf = model.psf
