@@ -387,3 +387,14 @@ def test_a_pinhole_spacing_below_two_cfa_periods_is_refused_in_one_line():
         with pytest.raises(InputError, match=r"px apart; give a SPACING of at least 4 px"):
             load_scene(spec, 64, 64)
     assert len(load_scene("pinholes::4", 64, 64).points) == 256
+
+
+@pytest.mark.parametrize("spec, what", [("pinholes:1:-5", "SPACING"), ("pinholes:1:nan", "SPACING"),
+                                        ("pinholes:-1:80", "POWER"), ("point:inf", "POWER"), ("flat:-0.5", "LEVEL")])
+def test_a_bad_scene_number_is_named_by_its_place_in_the_spec(spec, what):
+    """A bad SPACING was reported as 'the level must be finite and >= 0' (of a valid POWER)."""
+    from hdrcam.capture.scene import load_scene
+
+    with pytest.raises(InputError) as refused:
+        load_scene(spec, 64, 64)
+    assert str(refused.value) == f"scene {spec!r}: the {what} must be finite and >= 0"
