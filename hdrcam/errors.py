@@ -99,6 +99,21 @@ _USB_DEFAULT_ADVICE = ("check the camera's cable, power and PC-remote mode, then
                        "continues a bracket)")
 
 
+def missing_input(path, expected: str, *, option: str | None = None, missing: str | None = None) -> InputError:
+    """The one-line InputError for an input ``path`` that is not a regular file: a folder is named as one, not
+    ``expected`` (e.g. 'a checkpoint file'; as hdrcam.io.file_magic.missing_file_reason words it for images), a
+    device, pipe or socket as not a regular file, anything else is ``missing`` (default 'PATH: no such file').
+    ``option`` (e.g. '--psf') goes before the path."""
+    import os
+
+    named = f"{option} {path}" if option else f"{path}"
+    if os.path.isdir(path):
+        return InputError(f"{named}: a folder, not {expected}")
+    if os.path.exists(path):
+        return InputError(f"{named}: not a regular file (a device, pipe or socket), not {expected}")
+    return InputError(missing or f"{named}: no such file")
+
+
 def os_error_message(error: OSError) -> str:
     """One line for an operating-system error: the path(s) involved, what happened and what to do."""
     paths = [escaped_name(p.decode("utf-8", "surrogateescape") if isinstance(p, bytes) else str(p))

@@ -85,7 +85,12 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     if resume:
         saved = load_bracket(lights_manifest)
         saved_darks = load_bracket(darks_manifest) if darks_manifest.exists() else None
-        if saved.status == "complete" and (not darks or getattr(saved_darks, "status", "") == "complete"):
+        darks_status = saved_darks.status if saved_darks else None
+        darks_pending = darks_status == "incomplete" or (saved.options.get("darks") and darks_status is None)
+        if saved.status == "complete" and not darks and darks_pending:
+            raise InputError(f"--resume: {lights_manifest} was started with --darks and its darks are not "
+                             "complete; resume with --darks too")
+        if saved.status == "complete" and (not darks or darks_status == "complete"):
             raise InputError(f"{folder}: the capture is complete; nothing to resume")
     else:
         for manifest in (lights_manifest, darks_manifest):
@@ -109,18 +114,19 @@ def capture_bracket(out: str | Path, *, camera: str = "sim", profile: str = DEFA
     device, simulated = open_camera(camera, chosen, scene=rendered, psf=kernel, seed=seed,
                                     hot_pixel_fraction=hot_pixel_fraction, exposure_error=exposure_error)
     options = {"scene": rendered.description if rendered else None, "psf": psf if rendered else None, "seed": seed,
-               "profile_sha256": sha256_of(chosen.path)}
+               "profile_sha256": sha256_of(chosen.path), **({"darks": True} if darks else {})}
     truth = simulated.true_exposure_s if simulated else None
     started, shot, dark_bracket = time.perf_counter(), 0, None
     with device:
         say(f"camera: {device.model} ({camera}); profile {chosen.name}")
+        lights = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name, options=options,
+                                true_exposure_s=truth, show_progress=show_progress)
         if saved is not None and saved.status == "complete":
+            lights.check_same_request(saved, plan)  # darks only for lights shot as this run would shoot them
             bracket = saved
         else:
             kept = len(saved.frames) if saved else 0  # before shoot(), which goes on adding to ``saved``
-            bracket = BracketCapture(device, chosen.camera, folder, backend=camera, profile=chosen.name,
-                                     options=options, true_exposure_s=truth,
-                                     show_progress=show_progress).shoot(plan, resume=saved)
+            bracket = lights.shoot(plan, resume=saved)
             shot += len(bracket.frames) - kept
         _log_frames(say, bracket, folder)
         if darks:
@@ -226,14 +232,15 @@ def design(out: str | Path, *, preset: str | None = None, profile: str | None = 
     (default 0): weight per dB of the loss term that is minus each scene's linear-PSNR gain over its captured
     frame (hdrcam.recon.losses.linear_gain_loss). Returns the last logged step (losses, seconds).
     """
-    from hdrcam.errors import InputError
+    from hdrcam.errors import missing_input
     from hdrcam.train.choices import FIXED_PSFS
 
     if psf and psf not in FIXED_PSFS and not Path(psf).is_file():
-        raise InputError(f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
+        raise missing_input(psf, f"one of {', '.join(FIXED_PSFS)} or a PSF (EXR file)", option="--psf",
+                            missing=f"--psf {psf}: not one of {', '.join(FIXED_PSFS)} and no such file")
     for option, path in (("--init", init), ("--init-doe", init_doe)):
         if path is not None and not Path(path).is_file():
-            raise InputError(f"{option} {path} does not exist")
+            raise missing_input(path, "a checkpoint file", option=option, missing=f"{option} {path} does not exist")
     given = _given(preset=preset, profile=recorded_file(profile), data=recorded_data(data), steps=steps,
                    batch=batch, crop_px=crop_px, learning_rate=learning_rate, seed=seed,
                    checkpoint_every=checkpoint_every, precision=precision, channels_last=channels_last,
@@ -282,7 +289,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     ``out``/model.pt (model-partner.pt) holds the start networks behind that PSF and the fine-tuned ones are
     kept as model-finetuned.pt (model-finetuned-partner.pt). ``out``/check.json records it
     (hdrcam.train.finetune_check; ``hdrcam.stages.finetune_check_record(out)`` reads it)."""
-    from hdrcam.errors import InputError
+    from hdrcam.errors import InputError, missing_input
     from hdrcam.train.checkpoint import SHIPPED_CHECKPOINT, partner_checkpoint, read_checkpoint
     from hdrcam.train.config import read_run_config
     from hdrcam.train.design import RUN_FILES
@@ -309,7 +316,7 @@ def finetune(psf: str | Path | None, out: str | Path, *, checkpoint: str | Path 
     if not recorded_psf_gone and Path(psf).is_dir() and (Path(psf) / "psf.exr").is_file():
         raise InputError(f"--psf {psf} is a folder; give the PSF inside it: {Path(psf) / 'psf.exr'}")
     if not recorded_psf_gone and not Path(psf).is_file():
-        raise InputError(f"--psf {psf} does not exist")
+        raise missing_input(psf, "a PSF (EXR file)", option="--psf", missing=f"--psf {psf} does not exist")
     if not resume and (partner_model.exists() or any((partner_run / name).exists() for name in RUN_FILES)):
         raise InputError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     partner_resumes = partner and resume and (partner_run / "checkpoint.pt").is_file()

@@ -26,7 +26,7 @@ import numpy as np
 
 from hdrcam.calibrate.effective_psf import EffectivePsf, fit_effective_psf, fitted_models, phase_coverage
 from hdrcam.calibrate.hot_pixels import hot_pixel_map
-from hdrcam.calibrate.point_sources import SourceWindow, channel_map, cut_window, detect_sources
+from hdrcam.calibrate.point_sources import ANNULUS_WIDTH_PX, SourceWindow, channel_map, cut_window, detect_sources
 from hdrcam.errors import InputError
 from hdrcam.hdr.bracket_input import read_bracket
 from hdrcam.hdr.fuse import matching_darks
@@ -76,6 +76,19 @@ def source_size(diameter_m: float | None, distance_m: float | None, profile: Pro
     image_m_per_m = focal_m / (distance - focal_m)  # the thin lens's magnification at that distance
     return SourceSize(float(diameter_m), distance, distance_m is not None,
                       float(diameter_m) * image_m_per_m / pitch_m, pitch_m / image_m_per_m)
+
+
+def check_window_fits(size_px: int, height_px: int, width_px: int) -> None:
+    """InputError when a source's window - the ``size_px`` PSF, WINDOW_MARGIN_PX and the background annulus
+    (ANNULUS_WIDTH_PX) on every side - is larger than the frame: no source could be measured in it."""
+    border_px = 2 * (WINDOW_MARGIN_PX + ANNULUS_WIDTH_PX)
+    if size_px + border_px <= min(height_px, width_px):
+        return
+    largest = min(height_px, width_px) - border_px
+    largest -= 1 - largest % 2  # odd
+    advice = f"give a --size of {largest} px or less" if largest >= 3 else "the frame is too small for any PSF"
+    raise InputError(f"PSF size {size_px} px (--size): with its margin and background annulus a source's window is "
+                     f"{size_px + border_px} px across, larger than the {width_px} x {height_px} px frame; {advice}")
 
 
 def check_source_size(source: SourceSize, size_px: int) -> None:
@@ -388,6 +401,7 @@ def calibrate_psf(sources: list[Path], camera: CameraSpec, *, darks: Path | None
     if source is not None:
         check_source_size(source, size_px)
     frames = read_bracket(sources)
+    check_window_fits(size_px, *frames[0].bayer_dn.shape)  # before the merge, and the detection's size^2 kernel
     dark_frames = matching_darks(frames, darks)
     merge = merge_bayer(frames, camera, scene_fills_frame=False)  # a bracket without sources is refused below
     # darks find hot pixels; the annulus takes any dark offset out

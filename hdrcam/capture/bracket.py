@@ -93,6 +93,14 @@ def frame_statistics(bayer_dn: np.ndarray, camera: CameraSpec, iso: float, plan:
     return FrameStatistics(clipped, float(snr))
 
 
+def _differing(old, new) -> tuple:
+    """Of two settings that differ, the entries that do (both whole unless both are dicts)."""
+    if not (isinstance(old, dict) and isinstance(new, dict)):
+        return old, new
+    keys = [key for key in {**old, **new} if old.get(key) != new.get(key)]
+    return {key: old[key] for key in keys if key in old}, {key: new[key] for key in keys if key in new}
+
+
 class BracketCapture:
     """Shoots one bracket into a folder and records it in bracket.json.
 
@@ -157,21 +165,38 @@ class BracketCapture:
         self._finish(bracket)
         return bracket
 
+    def check_same_request(self, saved: Bracket, plan: BracketPlan) -> None:
+        """InputError unless ``saved`` (this folder's bracket, complete or not) was shot as this capture would
+        shoot ``plan``: the same kind, camera, profile and options (the plan, the scene, the seed, ...). A
+        capture started with darks (``options["darks"]``) must go on with them; one started without may add them."""
+        self._check_same_request(saved, self.new_bracket(plan, saved.kind))
+
+    def _check_same_request(self, saved: Bracket, bracket: Bracket) -> None:
+        manifest = self.folder / MANIFEST_NAME
+        for what, old, new in (("kind", saved.kind, bracket.kind), ("camera", saved.camera, bracket.camera),
+                               ("profile", saved.profile, bracket.profile)):
+            if old != new:
+                old, new = _differing(old, new)
+                raise InputError(f"--resume: {manifest} was shot with {what} {old}, this run has {new}; resume "
+                                 "with the same camera, profile and options, or choose another --out")
+        if saved.options.get("darks") and not bracket.options.get("darks"):
+            raise InputError(f"--resume: {manifest} was started with --darks; resume with --darks too, or "
+                             "choose another --out")
+        for key in sorted((set(saved.options) | set(bracket.options)) - {"darks"}):
+            old, new = saved.options.get(key), bracket.options.get(key)
+            if old != new:
+                old, new = _differing(old, new)
+                raise InputError(f"--resume: {manifest} was shot with {key} {json.dumps(old)}, this run asks "
+                                 f"for {json.dumps(new)}; resume with the same options, or choose another --out")
+
     def _continued(self, saved: Bracket, bracket: Bracket) -> Bracket:
         """``saved`` (an incomplete bracket of this folder) after checking it was shot the same way."""
         manifest = self.folder / MANIFEST_NAME
         if saved.status == "complete":
             raise InputError(f"{manifest}: the capture is complete; nothing to resume")
-        for what, old, new in (("kind", saved.kind, bracket.kind), ("camera", saved.camera, bracket.camera),
-                               ("profile", saved.profile, bracket.profile)):
-            if old != new:
-                raise InputError(f"--resume: {manifest} was shot with {what} {old}, this run has {new}; resume "
-                                 "with the same camera, profile and options, or choose another --out")
-        for key in sorted(set(saved.options) | set(bracket.options)):
-            old, new = saved.options.get(key), bracket.options.get(key)
-            if old != new:
-                raise InputError(f"--resume: {manifest} was shot with {key} {json.dumps(old)}, this run asks "
-                                 f"for {json.dumps(new)}; resume with the same options, or choose another --out")
+        self._check_same_request(saved, bracket)
+        if bracket.options.get("darks"):  # darks added on resume: the manifest says so from now on
+            saved.options["darks"] = True
         for frame, path in zip(saved.frames, saved.paths()):
             if not path.is_file() or sha256_of(path) != frame.sha256:
                 raise InputError(f"--resume: {path} is missing or changed since it was captured (sha256); "

@@ -75,7 +75,7 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
                      "use a smaller --size")
     kind, _, argument = spec.partition(":")
     if kind == "point":
-        power = _number(spec, argument, DEFAULT_POINT_POWER)
+        power = _number(spec, argument, DEFAULT_POINT_POWER, "POWER")
         rng = np.random.default_rng(seed)
         offset = rng.uniform(-0.5, 0.5, 2)
         source = PointSource(width_px // 2 + float(offset[0]), height_px // 2 + float(offset[1]), power)
@@ -83,8 +83,8 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
                                                            f"at ({source.x_px:.3f}, {source.y_px:.3f}) px")
     if kind == "pinholes":
         power_text, _, spacing_text = argument.partition(":")
-        power = _number(spec, power_text, DEFAULT_POINT_POWER)
-        spacing = _number(spec, spacing_text, pinhole_spacing_px)
+        power = _number(spec, power_text, DEFAULT_POINT_POWER, "POWER")
+        spacing = _number(spec, spacing_text, pinhole_spacing_px, "SPACING")
         if spacing < MIN_PINHOLE_SPACING_PX:
             raise InputError(f"scene {spec!r}: pinholes {spacing:g} px apart; give a SPACING of at least "
                              f"{MIN_PINHOLE_SPACING_PX} px (the default follows the PSF: {pinhole_spacing_px:g} px)")
@@ -96,7 +96,7 @@ def load_scene(spec: str, height_px: int, width_px: int, seed: int = 0, *,
     if kind == "night":
         return Scene(height_px, width_px, night_scene(height_px, width_px, seed), (), f"procedural night, seed {seed}")
     if kind == "flat":
-        level = _number(spec, argument, 0.5)
+        level = _number(spec, argument, 0.5, "LEVEL")
         radiance = np.full((height_px, width_px, 3), level, np.float32)
         return Scene(height_px, width_px, radiance, (), f"flat field {level:g}")
     path = Path(spec)
@@ -131,7 +131,7 @@ def pinhole_grid(height_px: int, width_px: int, spacing_px: float, power: float,
                  for y in centres(height_px, offset_y) for x in centres(width_px, offset_x))
 
 
-def _number(spec: str, text: str, default: float) -> float:
+def _number(spec: str, text: str, default: float, what: str) -> float:
     if not text:
         return default
     try:
@@ -139,7 +139,7 @@ def _number(spec: str, text: str, default: float) -> float:
     except ValueError:
         raise InputError(f"scene {spec!r}: {text!r} is not a number") from None
     if not value >= 0 or not np.isfinite(value):
-        raise InputError(f"scene {spec!r}: the level must be finite and >= 0")
+        raise InputError(f"scene {spec!r}: the {what} must be finite and >= 0")
     return value
 
 

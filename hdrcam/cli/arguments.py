@@ -27,7 +27,8 @@ def _number(text: str) -> float:
 
 
 def positive_float(text: str) -> float:
-    """A positive number; 'inf' allowed (e.g. a source at infinity)."""
+    """A positive number; 'inf' allowed (ingest --max-gap: no limit). A number that is written into a JSON record
+    takes :func:`positive_finite_float`: JSON has no infinity."""
     value = _number(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
@@ -92,6 +93,22 @@ def _fraction(text: str, examples: str) -> float:
         return float(numerator) / float(denominator) if denominator else float(numerator)
     except (ValueError, ZeroDivisionError):
         raise argparse.ArgumentTypeError(f"expected {examples}, got {text!r}") from None
+
+
+def fraction_below_one(text: str) -> float:
+    """A fraction from 0 up to (not including) 1, such as 2e-5 or 0.02."""
+    value = _number(text)
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction from 0 up to (not including) 1, got {text!r}")
+    return value
+
+
+def fraction_between_0_and_1(text: str) -> float:
+    """A fraction strictly between 0 and 1, such as 0.015."""
+    value = _number(text)
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"must lie between 0 and 1 (both excluded), got {text!r}")
+    return value
 
 
 def share(text: str) -> float:

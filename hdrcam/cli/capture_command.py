@@ -7,8 +7,8 @@ from pathlib import Path
 
 from hdrcam.capture.backends import CAMERA_KINDS, SIMULATED_MIN_SIDE_PX
 from hdrcam.capture.notches import ev_step_from_text, iso_setting
-from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, integers, positive_float, positive_int,
-                                  random_seed)
+from hdrcam.cli.arguments import (add_profile_option, exposure_seconds, fraction_below_one, integers, positive_float,
+                                  positive_int, random_seed)
 from hdrcam.errors import InputError
 
 
@@ -47,10 +47,11 @@ def register(commands) -> None:
                             help=f"frame size in pixels, at least {SIMULATED_MIN_SIDE_PX}x{SIMULATED_MIN_SIDE_PX} "
                                  "(LibRaw opens no smaller RAW file; default: the profile's sensor)")
     simulation.add_argument("--seed", type=random_seed, default=0, help="noise, scene and defect seed")
-    simulation.add_argument("--hot-pixels", type=float, default=2e-5, metavar="FRACTION")
-    simulation.add_argument("--exposure-error", type=float, default=0.02, metavar="FRACTION",
-                            help="largest per-notch error of the true shutter time (default 0.02)")
-    parser.set_defaults(run=run, command_name="capture bracket")
+    simulation.add_argument("--hot-pixels", type=fraction_below_one, default=2e-5, metavar="FRACTION",
+                            help="share of the pixels that are hot, from 0 up to 1 (default 2e-5)")
+    simulation.add_argument("--exposure-error", type=fraction_below_one, default=0.02, metavar="FRACTION",
+                            help="largest per-notch error of the true shutter time, from 0 up to 1 (default 0.02)")
+    parser.set_defaults(run=run, command_name="capture bracket", usage_error=parser.error)
 
 
 def ev_step_argument(text: str) -> float:
@@ -73,6 +74,8 @@ def iso_argument(text: str) -> float:
 def run(arguments: argparse.Namespace) -> int:
     from hdrcam.stages import capture_bracket
 
+    if arguments.roi is not None and not arguments.auto:  # it would be taken and ignored: a fixed bracket
+        arguments.usage_error("argument --roi: the region --auto meters; give --auto with it, or leave --roi out")
     capture_bracket(arguments.out, camera=arguments.camera, profile=arguments.profile,
                     shortest_s=arguments.shortest, stops=arguments.stops, ev_step=arguments.ev_step,
                     iso=arguments.iso, auto=arguments.auto, roi=arguments.roi, darks=arguments.darks,

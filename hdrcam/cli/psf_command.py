@@ -10,7 +10,7 @@ from pathlib import Path
 
 from hdrcam import __version__
 from hdrcam.cli.arguments import (add_compute_options, add_profile_option, compute_device, compute_dtype,
-                                  naming_input, positive_float, positive_int, random_seed)
+                                  naming_input, positive_finite_float, positive_int, random_seed)
 from hdrcam.errors import InputError
 from hdrcam.io.atomic import atomic_paths, check_outputs, write_text_atomic
 from hdrcam.profiles import PROPAGATION_MODELS, load_profile
@@ -24,9 +24,9 @@ def register(commands) -> None:
     parser.add_argument("--doe", default=None,
                         help="rank1 | freeform (seeded initialisation) | none (clear aperture) | FILE "
                              "(height-map EXR); default: the profile's DOE kind")
-    parser.add_argument("--depth", type=positive_float, default=None, metavar="M",
+    parser.add_argument("--depth", type=positive_finite_float, default=None, metavar="M",
                         help="point-source distance in metres, beyond the lens's focal length (default: the profile's, "
-                             "5 m; 'inf' allowed)")
+                             "5 m; finite: psf.json is JSON, which has no infinity; 1e9 is as far as inf)")
     parser.add_argument("--out", type=Path, default=Path("psf-out"), help="output folder (default psf-out)")
     parser.add_argument("--psf-size", type=positive_int, default=None, metavar="PX", help="PSF crop in pixels")
     parser.add_argument("--wavelengths-per-band", type=positive_int, default=None, metavar="K")

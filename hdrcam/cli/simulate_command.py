@@ -13,8 +13,8 @@ import json
 import warnings
 from pathlib import Path
 
-from hdrcam.cli.arguments import positive_float, positive_int, random_seed
-from hdrcam.errors import InputError
+from hdrcam.cli.arguments import fraction_between_0_and_1, positive_int, random_seed
+from hdrcam.errors import InputError, missing_input
 from hdrcam.io.atomic import atomic_paths, check_outputs
 from hdrcam.train.choices import FIXED_PSFS
 
@@ -33,7 +33,8 @@ def register(commands) -> None:
     parser.add_argument("--size", type=positive_int, nargs=2, default=None, metavar=("H", "W"),
                         help="frame size of the procedural 'night' scene (default 768 1024); a scene file keeps "
                              "its own size")
-    parser.add_argument("--clipped-fraction", type=positive_float, default=0.015)
+    parser.add_argument("--clipped-fraction", type=fraction_between_0_and_1, default=0.015, metavar="F",
+                        help="share of the scene's pixels above 1 after scaling, between 0 and 1 (default 0.015)")
     parser.add_argument("--seed", type=random_seed, default=0, help="scene and noise seed")
     parser.add_argument("--overwrite", action="store_true")
     parser.set_defaults(run=run)
@@ -51,8 +52,6 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.limits import check_image_size
     from hdrcam.train.optical_capture import CAPTURE_BYTES_PER_PIXEL, capture_scene, fixed_psf
 
-    if not 0.0 < arguments.clipped_fraction < 1.0:
-        raise InputError("--clipped-fraction must lie between 0 and 1")
     if arguments.size is not None and arguments.scene != "night":
         raise InputError(f"--size sets the procedural 'night' scene's frame; {arguments.scene} is captured at its "
                          "own size (crop or resize the file instead)")
@@ -68,7 +67,8 @@ def run(arguments: argparse.Namespace) -> int:
     profile = load_profile(model.profile if model else "simulated")
     if arguments.psf:
         if arguments.psf not in FIXED_PSFS and not Path(arguments.psf).is_file():
-            raise InputError(f"--psf {arguments.psf} does not exist")
+            raise missing_input(arguments.psf, "a PSF (EXR file)", option="--psf",
+                                missing=f"--psf {arguments.psf} does not exist")
         psf = fixed_psf(arguments.psf, profile)
     else:
         psf = model.psf

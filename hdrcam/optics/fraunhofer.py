@@ -198,7 +198,8 @@ def fraunhofer_memory_bytes(cells: int, output_length: int, wavelengths: int, dt
     every wavelength for the backward pass, a few times more."""
     real = torch.finfo(dtype).bits // 8
     complex_ = 2 * real
-    fft = scipy_fft.next_fast_len(cells + output_length - 1)
+    length = cells + output_length - 1
+    fft = scipy_fft.next_fast_len(length) if length < 2 ** 62 else length  # past a C ssize_t: refused on any machine
     buffers = wavelengths * (complex_ * (cells ** 2 + cells + output_length + fft) + real * output_length ** 2) \
         + real * cells ** 2
     building = 49 * cells ** 2 + 24 * output_length ** 2

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, missing_input
 from hdrcam.io.atomic import write_bytes_atomic
 from hdrcam.recon.network import ReconstructionNet
 from hdrcam.recon.presets import preset as preset_named
@@ -57,7 +57,7 @@ def read_checkpoint(path: Path) -> dict:
     """Load and check a checkpoint file; a one-line InputError when it is missing, damaged or foreign."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"checkpoint {path} does not exist")
+        raise missing_input(path, "a checkpoint file", missing=f"checkpoint {path} does not exist")
     if _is_torchscript(path):
         raise InputError(f"{path}: a TorchScript export (hdrcam export), not an hdrcam checkpoint; give the checkpoint "
                          "it was exported from (design or finetune's model.pt)")

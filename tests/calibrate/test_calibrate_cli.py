@@ -99,6 +99,23 @@ def test_an_even_size_is_a_clear_error(pinhole_bracket, tmp_path, capsys):
     assert "odd" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("size", ["99999999999", "49", "29"])
+def test_a_size_larger_than_the_frame_is_refused_naming_the_largest_that_fits(tmp_path, capsys, size):
+    """99999999999 crashed (exit 3: a size^2 detection kernel); sizes under it but past the frame were refused as
+    'no usable point source: 1 found - 1 too close to the frame's edge', not naming --size."""
+    folder = tmp_path / "pinhole"
+    assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "point", "--psf",
+                 "dirac", "--size", "64x48", "--stops", "2", "--out", str(folder)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "r"
+    assert main(["calibrate", "psf", str(folder), "--out", str(out), "--profile", "simulated", "--size", size]) == 1
+    assert capsys.readouterr().err == (
+        f"hdrcam calibrate psf: error: PSF size {size} px (--size): with its margin and background annulus a "
+        f"source's window is {int(size) + 20} px across, larger than the 64 x 48 px frame; give a --size of 27 px "
+        "or less\n")
+    assert not out.exists()
+
+
 def test_darks_of_another_frame_size_are_refused(pinhole_bracket, tmp_path, capsys):
     small = tmp_path / "small"
     assert main(["capture", "bracket", "--camera", "sim", "--profile", "simulated", "--scene", "flat:0",

@@ -160,6 +160,20 @@ def test_a_bracket_beyond_30_s_is_refused_before_the_folder_is_claimed(tmp_path,
     assert status == 1 and "--ev-step 2 or less" in capsys.readouterr().err and not out.exists()
 
 
+@pytest.mark.parametrize("option, value", [("--hot-pixels", "nan"), ("--hot-pixels", "1"), ("--hot-pixels", "-1e-5"),
+                                           ("--exposure-error", "1e400"), ("--exposure-error", "-0.1")])
+def test_defect_fractions_out_of_range_are_usage_errors_naming_the_option(tmp_path, capsys, option, value):
+    """They were exit 1 naming the API's fields (hot_pixel_fraction nan: ...) after the parse."""
+    out = tmp_path / "b"
+    with pytest.raises(SystemExit) as stopped:
+        main(["capture", "bracket", "--size", "64x48", "--out", str(out), f"{option}={value}"])
+    assert stopped.value.code == 2 and capsys.readouterr().err == (
+        f"hdrcam capture bracket: error: argument {option}: expected a fraction from 0 up to (not including) 1, "
+        f"got {value!r} (see 'hdrcam capture bracket --help')\n")
+    assert not out.exists()
+    assert parse(option, "0").__dict__[option[2:].replace("-", "_")] == 0.0
+
+
 # -- resume -------------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("failing_shot, shot_on_resume", [(2, 5), (5, 2)])  # 3 lights, then 3 darks
 def test_a_resumed_capture_counts_the_frames_it_shot(tmp_path, monkeypatch, failing_shot, shot_on_resume):
@@ -182,6 +196,95 @@ def test_a_resumed_capture_counts_the_frames_it_shot(tmp_path, monkeypatch, fail
     bracket, darks = hdrcam.capture_bracket(tmp_path / "b", resume=True, log=lines.append, **options)
     assert bracket.status == darks.status == "complete" and len(bracket.frames) == len(darks.frames) == 3
     assert any(line.startswith(f"{shot_on_resume} frames in ") for line in lines), lines
+
+
+CAPTURE = ["capture", "bracket", "--profile", "simulated", "--psf", "dirac", "--size", "64x48", "--stops", "3",
+           "--ev-step", "3", "--seed", "1"]
+
+
+def capture(capsys, out, *options: str) -> tuple[int, list[str]]:
+    """``hdrcam capture bracket`` into ``out``: (exit status, the error lines on stderr)."""
+    capsys.readouterr()
+    status = main([*CAPTURE, "--out", str(out), *options])
+    return status, [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+
+
+def files_under(folder) -> dict[str, bytes]:
+    return {str(path.relative_to(folder)): path.read_bytes() for path in sorted(folder.rglob("*")) if path.is_file()}
+
+
+OPTIONS_DIFFER = "; resume with the same options, or choose another --out"
+
+
+@pytest.mark.parametrize("options, differs", [
+    (["--camera", "sim", "--iso", "200"], 'plan {"iso": 100.0}, this run asks for {"iso": 200.0}' + OPTIONS_DIFFER),
+    (["--camera", "sim", "--ev-step", "2"], 'plan {"ev_step": 3.0}, this run asks for {"ev_step": 2.0}'
+                                            + OPTIONS_DIFFER),
+    (["--camera", "sim", "--scene", "flat:0.2"], 'scene "point source, power 50, at (32.012, 24.450) px", this run '
+                                                 'asks for "flat field 0.2"' + OPTIONS_DIFFER),
+    (["--camera", "sim-usb"], "camera {'backend': 'sim', 'model': 'Sony ILCE-7 (simulated, simulated)'}, this run "
+                              "has {'backend': 'sim-usb', 'model': 'Sony Corporation ILCE-7', 'focus_mode': 'MF', "
+                              "'drive_mode': 'single', 'firmware': '3.20'}; resume with the same camera, profile "
+                              "and options, or choose another --out")])
+def test_darks_added_to_a_complete_capture_are_refused_when_the_plan_or_camera_differ(tmp_path, capsys, options,
+                                                                                       differs):
+    """`--resume --darks` on complete lights without darks checks the lights as any --resume does, before a dark
+    is shot (it shot darks at ISO 200 for lights at ISO 100, or on another backend)."""
+    out = tmp_path / "b"
+    assert capture(capsys, out, "--camera", "sim") == (0, [])
+    before = files_under(out)
+    assert capture(capsys, out, *options, "--resume", "--darks") == (
+        1, [f"hdrcam capture bracket: error: --resume: {out}/bracket.json was shot with {differs}"])
+    assert files_under(out) == before and not (out / "darks").exists()
+    assert capture(capsys, out, "--camera", "sim", "--resume", "--darks") == (0, [])  # the same request: darks
+    assert load_bracket(out / "darks").status == "complete" and load_bracket(out).options.get("darks") is None
+
+
+def stop_at_shot(monkeypatch, shot: int):
+    """The simulated camera's ``shot``-th capture (1: the first) fails with a full disk."""
+    from hdrcam.capture.simulated import SimulatedCamera
+
+    capture_, calls = SimulatedCamera.capture, []
+
+    def disk_full(self, folder, stem, *, dark=False):
+        calls.append(stem)
+        if len(calls) == shot:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return capture_(self, folder, stem, dark=dark)
+
+    monkeypatch.setattr(SimulatedCamera, "capture", disk_full)
+
+
+@pytest.mark.parametrize("stopped_at, refusal", [
+    (2, "was started with --darks; resume with --darks too, or choose another --out"),  # in the lights
+    (5, "was started with --darks and its darks are not complete; resume with --darks too")])  # in the darks
+def test_a_capture_started_with_darks_is_not_resumed_without_them(tmp_path, capsys, monkeypatch, stopped_at,
+                                                                  refusal):
+    out = tmp_path / "b"
+    with monkeypatch.context() as patch:
+        stop_at_shot(patch, stopped_at)
+        assert capture(capsys, out, "--darks")[0] == 1
+    before = files_under(out)
+    assert capture(capsys, out, "--resume") == (
+        1, [f"hdrcam capture bracket: error: --resume: {out}/bracket.json {refusal}"])
+    assert files_under(out) == before
+    assert capture(capsys, out, "--resume", "--darks") == (0, [])
+    assert load_bracket(out).status == load_bracket(out / "darks").status == "complete"
+    assert load_bracket(out).options["darks"] is True
+
+
+def test_darks_may_be_added_when_resuming_a_capture_started_without_them(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "b"
+    with monkeypatch.context() as patch:
+        stop_at_shot(patch, 2)
+        assert capture(capsys, out)[0] == 1
+    assert "darks" not in load_bracket(out).options
+    assert capture(capsys, out, "--resume", "--darks") == (0, [])
+    lights, darks = load_bracket(out), load_bracket(out / "darks")
+    assert lights.status == darks.status == "complete" and len(darks.frames) == 3
+    assert lights.options["darks"] is True
+    assert capture(capsys, out, "--resume") == (1, [f"hdrcam capture bracket: error: {out}: the capture is "
+                                                    "complete; nothing to resume"])
 
 
 @pytest.mark.parametrize("option, message", [
@@ -284,3 +387,14 @@ def test_a_pinhole_spacing_below_two_cfa_periods_is_refused_in_one_line():
         with pytest.raises(InputError, match=r"px apart; give a SPACING of at least 4 px"):
             load_scene(spec, 64, 64)
     assert len(load_scene("pinholes::4", 64, 64).points) == 256
+
+
+@pytest.mark.parametrize("spec, what", [("pinholes:1:-5", "SPACING"), ("pinholes:1:nan", "SPACING"),
+                                        ("pinholes:-1:80", "POWER"), ("point:inf", "POWER"), ("flat:-0.5", "LEVEL")])
+def test_a_bad_scene_number_is_named_by_its_place_in_the_spec(spec, what):
+    """A bad SPACING was reported as 'the level must be finite and >= 0' (of a valid POWER)."""
+    from hdrcam.capture.scene import load_scene
+
+    with pytest.raises(InputError) as refused:
+        load_scene(spec, 64, 64)
+    assert str(refused.value) == f"scene {spec!r}: the {what} must be finite and >= 0"

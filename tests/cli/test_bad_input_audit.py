@@ -82,6 +82,47 @@ def test_a_folder_given_as_the_scene_is_named_as_a_folder(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [scene]
 
 
+@pytest.mark.parametrize("argv, expected", [
+    (lambda d, frame, out: ["psf", "--profile", "simulated", "--psf-size", "15", "--doe", d, "--out", out],
+     "{d}: a folder, not an image file"),
+    (lambda d, frame, out: ["fabricate", d, "--out", out], "{d}: a folder, not an image file"),
+    (lambda d, frame, out: ["capture", "bracket", "--profile", "simulated", "--size", "64x48", "--psf", d, "--out",
+                            out], "{d}: a folder, not an image file"),
+    (lambda d, frame, out: ["simulate", "night", "--size", "32", "32", "--psf", d, "--out", out / "f.exr"],
+     "--psf {d}: a folder, not a PSF (EXR file)"),
+    (lambda d, frame, out: ["simulate", "night", "--size", "32", "32", "--checkpoint", d, "--out", out / "f.exr"],
+     "{d}: a folder, not a checkpoint file"),
+    (lambda d, frame, out: ["reconstruct", frame, "--psf", d, "--out", out],
+     "{d}: a folder, not an image file"),
+    (lambda d, frame, out: ["reconstruct", frame, "--checkpoint", d, "--out", out],
+     "{d}: a folder, not a checkpoint file"),
+    (lambda d, frame, out: ["reconstruct", frame, "--partner", d, "--out", out],
+     "{d}: a folder, not a checkpoint file"),
+    (lambda d, frame, out: ["destreak", frame, "--method", "network", "--checkpoint", d, "--out", out],
+     "{d}: a folder, not a checkpoint file"),
+    (lambda d, frame, out: ["evaluate", "--count", "1", "--size", "64", "--psf", d, "--out", out],
+     "{d}: a folder, not an image file"),
+    (lambda d, frame, out: ["design", "--steps", "1", "--psf", d, "--out", out],
+     "--psf {d}: a folder, not one of dirac, star8, dual-peak, windshield or a PSF (EXR file)"),
+    (lambda d, frame, out: ["design", "--steps", "1", "--init", d, "--out", out],
+     "--init {d}: a folder, not a checkpoint file"),
+    (lambda d, frame, out: ["finetune", "--steps", "1", "--psf", d, "--out", out],
+     "--psf {d}: a folder, not a PSF (EXR file)"),
+], ids=["psf-doe", "fabricate", "capture-psf", "simulate-psf", "simulate-checkpoint", "reconstruct-psf",
+        "reconstruct-checkpoint", "reconstruct-partner", "destreak-checkpoint", "evaluate-psf", "design-psf",
+        "design-init", "finetune-psf"])
+def test_a_folder_given_as_an_input_file_is_named_as_a_folder(argv, expected, tmp_path, capsys):
+    """Each said 'no such file' or 'does not exist' of a folder that exists."""
+    from hdrcam.io.exr import write_exr
+
+    folder, frame, out = tmp_path / "given", tmp_path / "frame.exr", tmp_path / "out"
+    folder.mkdir()
+    write_exr(frame, np.full((32, 32, 3), 0.2, np.float32), channel_names=("R", "G", "B"))
+    line = assert_failed_with_one_line(run(argv(folder, frame, out), capsys), 1)
+    assert line.endswith(": error: " + expected.format(d=folder)), line
+    assert sorted(tmp_path.iterdir()) == [frame, folder] and list(folder.iterdir()) == []
+
+
 @pytest.mark.parametrize("command", ["reconstruct", "destreak"])
 def test_an_all_white_frame_among_good_ones_is_refused_before_any_output(command, tmp_path, capsys):
     """An all-saturated frame is bad input (it records no scene and no streak): one line naming it, exit 1, and

@@ -137,3 +137,32 @@ def test_simulate_warns_when_a_scene_cannot_be_scaled_to_the_clipped_fraction_as
     with pytest.warns(UserWarning, match="0 % of its pixels exceed 1, not the 1.5 % asked"):
         assert main(["simulate", str(tmp_path / "uniform.exr"), "--psf", "dirac", "--out",
                      str(tmp_path / "f.exr")]) == 0
+
+
+@pytest.mark.parametrize("depth", ["inf", "1e400", "Infinity"])
+def test_psf_refuses_a_source_at_infinity_as_a_usage_error(depth, tmp_path, capsys):
+    """psf.json held "source_distance_m": Infinity, which is not JSON (strict readers refused the file)."""
+    out = tmp_path / "p"
+    error = _usage_error(["psf", "--profile", "simulated", "--psf-size", "15", "--depth", depth, "--out", out], capsys)
+    assert error == f"hdrcam psf: error: argument --depth: must be finite, got {depth!r} (see 'hdrcam psf --help')\n"
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("fraction", ["1", "inf", "1e400", "0", "nan"])
+def test_simulate_refuses_a_clipped_fraction_outside_0_1_as_a_usage_error(fraction, tmp_path, capsys):
+    out = tmp_path / "s.exr"
+    error = _usage_error(["simulate", "night", "--psf", "dirac", "--clipped-fraction", fraction, "--out", out], capsys)
+    assert error == (f"hdrcam simulate: error: argument --clipped-fraction: must lie between 0 and 1 (both excluded), "
+                     f"got {fraction!r} (see 'hdrcam simulate --help')\n")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("size", ["99999999999999999999", "9223372036854775807", "10000000000"])
+def test_psf_refuses_a_psf_size_beyond_any_memory_in_one_line(size, tmp_path, capsys):
+    """Past a C ssize_t the memory estimate itself crashed (OverflowError in next_fast_len, exit 3)."""
+    out = tmp_path / "p"
+    assert main(["psf", "--psf-size", size, "--out", str(out)]) == 1  # the default profile: the chirp-z model
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith("hdrcam psf: error: a chirp-z PSF of 3 wavelengths on ")
+    assert f" and {size} px at 7 points per pixel needs about " in error and " TB of memory, more than the " in error
+    assert not out.exists()
