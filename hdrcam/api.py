@@ -18,6 +18,7 @@ import torch
 
 from hdrcam.errors import InputError
 from hdrcam.optics.psf_file import unit_sum_psf
+from hdrcam.recon.colour_fill import checked_neutral, fill_from_unclipped_channels
 from hdrcam.recon.consistency import ConsistencyReport, NoiseModel, make_consistent
 from hdrcam.recon.highlight_placement import place_highlights as place_highlight_light
 from hdrcam.recon.highlight_refinement import refine_highlight_amplitudes
@@ -47,6 +48,7 @@ class Reconstruction:
     consistency: ConsistencyReport
     streak_fit: str  # the optional streak fit's summary, or "off"
     placement: str = "off"  # the optional highlight placement's summary, or "off"
+    colour_filled: int = 0  # clipped channel samples raised to what the pixel's unclipped channels show
 
     @property
     def fallback_fraction(self) -> float:
@@ -58,7 +60,8 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
                 adaptive: bool = True, tile_px: int = DEFAULT_CORE_PX, halo_px: int = DEFAULT_HALO_PX,
                 streak_fit: bool = False, place_highlights: bool = False, mirror_check: bool = True,
                 device: torch.device | str = "cpu",
-                dtype: torch.dtype = torch.float32, progress=None, regions=None, partner="auto") -> Reconstruction:
+                dtype: torch.dtype = torch.float32, progress=None, regions=None, partner="auto",
+                neutral_rgb=(1.0, 1.0, 1.0)) -> Reconstruction:
     """Reconstruct one captured LDR frame into linear HDR (paper Sec. 4, with the frame as the final judge).
 
     ``frame``: H x W x 3 linear camera RGB in [0, 1] (1 = white level). ``model``: a
@@ -82,11 +85,15 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     highlights past the truth on real photographs; one network only: with it, partner "auto" means none and
     a given partner is an InputError); the estimate is then made consistent with the frame -
     clipped channels at least 1, each highlight lowered wherever its light re-imaged through the PSF would
-    exceed what the frame recorded beyond noise (hdrcam.recon.consistency); unclipped pixels are the frame
-    less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With ``place_highlights`` (off by
-    default: on the validation photographs it changed nothing yet; hdrcam.recon.highlight_placement), light is
-    then added where long streaks say a blob's light sits (a sun inside its glow) and the judge vets the result
-    again, so the confidence map and the report are the second judge's. A frame
+    exceed what the frame recorded beyond noise (hdrcam.recon.consistency); a channel that clipped where another
+    did not is then raised to at least what the unclipped channels and the highlight's hue show
+    (hdrcam.recon.colour_fill; ``neutral_rgb``: the RGB a grey surface records in the frame - equal channels,
+    the default, for a white-balanced frame, a RAW file's as-shot neutral for its camera RGB); unclipped pixels
+    are the frame less the kept highlights' spill (hdrcam.recon.highlight_spill, Eq. 6). With
+    ``place_highlights`` (off by default: on the validation photographs it changed nothing yet;
+    hdrcam.recon.highlight_placement), light is then added where long streaks say a blob's light sits (a sun
+    inside its glow) and the judge vets the result again, so the confidence map and the report are the second
+    judge's. A frame
     clipped in every channel of every pixel records nothing to reconstruct from: InputError
     (hdrcam.recon.tiling.refuse_all_clipped).
     """
@@ -104,6 +111,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     if noise is not None and not isinstance(noise, NoiseModel):
         raise InputError(f"noise {noise!r}: a hdrcam.recon.consistency.NoiseModel (full well and read noise, e-)")
     device = checked_device(device, dtype)
+    checked_neutral(neutral_rgb)
     psf = model.psf if psf is None else unit_sum_psf(psf)
     frame = np.ascontiguousarray(frame, np.float32)
     if frame.ndim != 3 or frame.shape[-1] != 3 or 0 in frame.shape:
@@ -154,6 +162,7 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
             estimate, fit = refine_highlight_amplitudes(frame, network_hdr, psf, clipped)
             fit_summary = fit.summary()
         consistent, confidence, report = make_consistent(frame, estimate, psf, noise=noise)
+    consistent, filled = fill_from_unclipped_channels(frame, consistent, neutral_rgb)
     hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
     placement_summary = "off"
     if place_highlights:
@@ -161,8 +170,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
         placement_summary = placement.summary()
         if placement.placed_px:
             consistent, confidence, report = make_consistent(frame, proposal, psf, noise=noise)  # hdr + the excess
+            consistent, filled = fill_from_unclipped_channels(frame, consistent, neutral_rgb)
             hdr = subtract_highlight_spill(frame, consistent, psf, clipped)
-    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary, placement_summary)
+    return Reconstruction(hdr, network_hdr, confidence, tiles, report, fit_summary, placement_summary, filled)
 
 
 def checked_device(device: torch.device | str, dtype: torch.dtype) -> torch.device:

@@ -47,8 +47,9 @@ Per photograph (the folder's .exr/.hdr files, sorted, as `hdrcam evaluate --data
    In camera RGB fewer pixels exceed 1 than in sRGB (each row of M sums to at most 1, red to 0.36), while the
    PSF and the demosaic spread clipping to neighbours, so the frame's share differs from 1.5 % either way.
 
-Commands run as the `hdrcam` entry point next to sys.executable (else ``python -m hdrcam``; hdrcam.cli has no
-__main__). A failing command stops the script with one line naming it and its last stderr line.
+Commands run as ``python -m hdrcam`` with the hdrcam this script imported first on PYTHONPATH (an installed entry
+point runs the tree it was installed from: from another checkout, that tree's code, not the one measured). A
+failing command stops the script with one line naming it and its last stderr line.
 
 Prints a markdown table (photograph, LDR dB, reconstruct dB, gain, PU21) with means, the radiometric
 check per photograph and the wall time; writes the same text to --out (a .md file) when given.
@@ -59,6 +60,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import tempfile
@@ -68,6 +70,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import hdrcam
 from hdrcam.capture.notches import nearest_shutter
 from hdrcam.capture.scene import Scene
 from hdrcam.capture.simulated import BASE_ISO, DEFAULT_REFERENCE_EXPOSURE_S, SimulatedCamera
@@ -98,15 +101,13 @@ class BenchError(Exception):
     """A failed step; main() prints it as one line."""
 
 
-def hdrcam_command() -> list[str]:
-    """The `hdrcam` entry point next to this interpreter, else ``python -m hdrcam``."""
-    entry = Path(sys.executable).parent / "hdrcam"
-    return [str(entry)] if entry.is_file() else [sys.executable, "-m", "hdrcam"]
-
-
 def run_cli(arguments: list[str]) -> str:
-    command = hdrcam_command() + arguments
-    result = subprocess.run(command, capture_output=True, text=True)
+    """``python -m hdrcam ARGUMENTS`` with the hdrcam this script imported first on the path: an installed
+    entry point would run the tree it was installed from (another checkout's code, not the one measured)."""
+    root = str(Path(hdrcam.__file__).resolve().parents[1])
+    path = os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])])
+    result = subprocess.run([sys.executable, "-m", "hdrcam", *arguments], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONPATH": path})
     if result.returncode != 0:
         last = (result.stderr.strip().splitlines() or result.stdout.strip().splitlines() or ["no output"])[-1]
         raise BenchError(f"`hdrcam {' '.join(arguments[:2])}` failed (exit {result.returncode}): {last}")

@@ -12,6 +12,7 @@
 # ../shared/data/hdr-train --out runs/data`.) A failed step stops the script: its log is OUT/NAME.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"  # this tree's hdrcam, not the one .venv was installed from
 out=${1:?usage: $0 OUT [--checkpoint CKPT] [--partner CKPT | --no-partner]}; shift
 [ -d runs/data/val ] || { echo "runs/data is missing: python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data" >&2; exit 2; }
 [ -e "$out" ] && { echo "$out exists: choose another OUT" >&2; exit 1; }

@@ -122,7 +122,7 @@ def run(arguments: argparse.Namespace) -> int:
         result = reconstruct(frame, model, psf=psf, adaptive=arguments.adaptive,
                              tile_px=arguments.tile, halo_px=arguments.halo, streak_fit=arguments.streak_fit,
                              mirror_check=arguments.mirror_check, partner=partner,
-                             place_highlights=arguments.place_highlights,
+                             place_highlights=arguments.place_highlights, neutral_rgb=capture.neutral_rgb,
                              device=device, dtype=dtype, progress=progress, regions=plan)
         streaks = check_streaks(frame, psf, core_radius)
         with tqdm.external_write_mode(file=sys.stderr):  # lines of their own, not run on from the progress bar
@@ -139,7 +139,8 @@ def run(arguments: argparse.Namespace) -> int:
                       "windows_run": result.tiles.windows_run, "windows": result.tiles.windows,
                       "clipped_streak_pixels": streaks.clipped_streak_pixels,
                       "fallback_fraction": round(result.fallback_fraction, 4),
-                      "bad_pixels_repaired": capture.repaired_pixels}
+                      "bad_pixels_repaired": capture.repaired_pixels,
+                      "colour_filled_samples": result.colour_filled}
         pixels = np.concatenate([result.hdr, streaks.mask[..., None].astype(np.float32),
                                  result.confidence[..., None]], axis=-1)
         with atomic_paths((exr_path, png_path, confidence_path), overwrite=arguments.overwrite) as (
@@ -157,6 +158,7 @@ def run(arguments: argparse.Namespace) -> int:
                           "fallback_fraction": round(result.fallback_fraction, 4),
                           "sensor_defect_pixels": result.consistency.defect_pixels,
                           "bad_pixels_repaired": capture.repaired_pixels,
+                          "colour_filled_samples": result.colour_filled,
                           "clipped_streak_pixels": streaks.clipped_streak_pixels}))
     progress.close()
     return 0

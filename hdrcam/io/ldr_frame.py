@@ -72,6 +72,8 @@ class LdrCapture:
     orientation: int  # the EXIF Orientation code that displays it upright
     repaired_pixels: int = 0  # listed bad pixels that apply to the frame, replaced by their neighbours' median
     # (a warning names any left as read: no good neighbour)
+    neutral_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)  # what a grey surface records in ``rgb``: a RAW
+    # file's as-shot neutral (camera RGB, max 1); equal channels for an EXR, TIFF or PNG (taken as white-balanced)
 
 
 def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
@@ -84,7 +86,7 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
         raise InputError(f"{path}: {missing_file_reason(path)}")
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
-    suffix, orientation, exr, bad = path.suffix.lower(), 1, False, None
+    suffix, orientation, exr, bad, neutral = path.suffix.lower(), 1, False, None, (1.0, 1.0, 1.0)
     if (kind := frame_format(path, suffix)) == "OpenEXR":  # by its first bytes, whatever its name
         image = read_exr(path, to_rec709=False)  # clipped per stored channel: a matrix would unclip them
         rgb, orientation, exr = image.rgb(), exr_orientation(image.attributes), True
@@ -111,6 +113,7 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
         raw = read_raw(path)
         bad = bad_pixels.mask(raw.bayer_dn.shape, raw.metadata.timestamp) if bad_pixels is not None else None
         rgb, orientation = raw_relative_rgb(raw, demosaic_method, bad=bad), raw.metadata.orientation
+        neutral = tuple(float(value) for value in raw.metadata.as_shot_neutral)
     if not np.isfinite(rgb).all():
         raise InputError(f"{path}: frame has NaN or Inf pixels")
     lowest, highest = float(rgb.min()), float(rgb.max())
@@ -125,12 +128,12 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
                                                    "image)"))
     rgb = np.clip(rgb, 0.0, 1.0).astype(np.float32)
     if bad_pixels is None:
-        return LdrCapture(rgb, orientation)
+        return LdrCapture(rgb, orientation, neutral_rgb=neutral)
     if bad is None:  # a demosaiced file: each pixel's own neighbours
         bad = bad_pixels.mask(rgb.shape[:2])
         rgb, unrepaired = repair_rgb(rgb, bad)
         _warn_unrepaired(path, unrepaired)
-    return LdrCapture(rgb, orientation, int(bad.sum()))
+    return LdrCapture(rgb, orientation, int(bad.sum()), neutral)
 
 
 SUFFIX_FORMATS = {".exr": "OpenEXR", ".hdr": "Radiance", ".pic": "Radiance", ".tif": "TIFF", ".tiff": "TIFF",
