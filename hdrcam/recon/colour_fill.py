@@ -34,6 +34,8 @@ RIM_PX = 3  # the highlight's rim: unclipped pixels this close to a pixel where 
 RIM_GAP_PX = 1  # ... but farther than this: a demosaiced pixel next to a clipped sample mixes it into its value
 HUE_WINDOWS_PX = (15, 31, 63, 127)  # windows about a pixel searched for rim pixels, smallest first
 MIN_REFERENCE = 0.05  # a rim pixel's reference channel must read at least this (above the read-noise floor)
+TILE_PX = 256  # the frame is filled in tiles of this side that hold partly clipped pixels (time and memory
+# follow the highlights, not the frame; each tile reads its context, so the result is the whole frame's)
 HUE_SHRINK = 0.75  # exponent of the rim's hue against the neutral's (1: the rim's hue; 0: the neutral's);
 # chosen on the training photographs from 1 / 0.75 / 0.5 / 0.25 / 0 (tools/results/real-data/colour-fill)
 
@@ -51,14 +53,24 @@ def fill_from_unclipped_channels(frame: np.ndarray, hdr: np.ndarray,
     output = np.array(hdr, np.float32, copy=True)
     if not partly.any():
         return output, 0
-    rows, cols = np.nonzero(partly)
-    reach = RIM_PX + HUE_WINDOWS_PX[-1] // 2
-    top, left = max(rows.min() - reach, 0), max(cols.min() - reach, 0)
-    box = (slice(top, rows.max() + reach + 1), slice(left, cols.max() + reach + 1))
-    estimate, estimated = _cross_channel_estimate(frame[box], clipped[box], partly[box], neutral)
-    raised = estimated & (estimate > output[box])
-    output[box] = np.where(raised, estimate, output[box])
-    return output, int(raised.sum())
+    reach = RIM_PX + HUE_WINDOWS_PX[-1] // 2  # a pixel's estimate reads nothing farther than this
+    height, width = partly.shape
+    raised_total = 0
+    for top in range(0, height, TILE_PX):  # tiles holding partly clipped pixels, each with the context it reads
+        for left in range(0, width, TILE_PX):
+            core = (slice(top, min(top + TILE_PX, height)), slice(left, min(left + TILE_PX, width)))
+            if not partly[core].any():
+                continue
+            box = (slice(max(top - reach, 0), min(top + TILE_PX + reach, height)),
+                   slice(max(left - reach, 0), min(left + TILE_PX + reach, width)))
+            estimate, estimated = _cross_channel_estimate(frame[box], clipped[box], partly[box], neutral)
+            inner = (slice(top - box[0].start, core[0].stop - box[0].start),
+                     slice(left - box[1].start, core[1].stop - box[1].start))
+            estimate, estimated = estimate[inner], estimated[inner]
+            raised = estimated & (estimate > output[core])
+            output[core] = np.where(raised, estimate, output[core])
+            raised_total += int(raised.sum())
+    return output, raised_total
 
 
 def checked_neutral(neutral_rgb) -> np.ndarray:
