@@ -103,7 +103,7 @@ def _cross_channel_estimate(frame: np.ndarray, clipped: np.ndarray, partly: np.n
             usable = target & ~clipped[..., j]
             if not usable.any():
                 continue
-            hue, found = _rim_hue(frame[..., k], frame[..., j], rim & (frame[..., j] >= MIN_REFERENCE))
+            hue, found = _rim_hue(frame[..., k], frame[..., j], rim & (frame[..., j] >= MIN_REFERENCE), usable)
             usable &= found
             hue = hue ** HUE_SHRINK * (neutral[k] / neutral[j]) ** (1.0 - HUE_SHRINK)
             reference = frame[..., j].astype(np.float64)
@@ -115,9 +115,10 @@ def _cross_channel_estimate(frame: np.ndarray, clipped: np.ndarray, partly: np.n
     return estimate, estimated
 
 
-def _rim_hue(channel_k: np.ndarray, channel_j: np.ndarray, rim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rim_hue(channel_k: np.ndarray, channel_j: np.ndarray, rim: np.ndarray, needed: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
     """k / j over the rim pixels (weights j^2) in the smallest window about each pixel that holds one, and
-    where one does."""
+    where one does; larger windows are searched only while a ``needed`` pixel has none."""
     weight = np.where(rim, channel_j.astype(np.float64) ** 2, 0.0)
     weighted_k, weighted_j = weight * channel_k, weight * channel_j
     count = rim.astype(np.float64)
@@ -132,6 +133,6 @@ def _rim_hue(channel_k: np.ndarray, channel_j: np.ndarray, rim: np.ndarray) -> t
             sum_j = cv2.boxFilter(weighted_j, -1, size, normalize=False, borderType=cv2.BORDER_REFLECT)
             hue[new] = sum_k[new] / np.maximum(sum_j[new], 1e-12)
             found |= new
-        if found.all():
+        if found[needed].all():
             break
     return hue, found
