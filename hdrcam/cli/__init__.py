@@ -123,6 +123,19 @@ class StandardOutputError(HdrcamError):
     """Standard output cannot be written (a full device, a closed pipe)."""
 
 
+_CLOSED_STDOUT = "cannot write to standard output (it is closed); redirect it to a file or /dev/null"
+
+
+def require_standard_output() -> None:
+    """Refuse, before any work, a command whose results go to a closed standard output (``>&-``): without this
+    it would do all the work and write its files, then fail at its first print. (``capture`` and ``inspect``
+    print before any work, which refuses the same way.) A full device or a reader that has gone shows only
+    when written to, and is reported then."""
+    stream = sys.stdout
+    if stream is None or (isinstance(stream, _GuardedOutput) and stream._stream is None):
+        raise StandardOutputError(_CLOSED_STDOUT)
+
+
 class _GuardedOutput:
     """Wraps sys.stdout while a command runs: a failed write becomes a one-line StandardOutputError, and the
     descriptor then points at /dev/null so that the interpreter's own flush at exit cannot fail again."""
@@ -132,8 +145,7 @@ class _GuardedOutput:
 
     def write(self, text: str) -> int:
         if self._stream is None:
-            raise StandardOutputError("cannot write to standard output (it is closed); redirect it to a file or "
-                                      "/dev/null")
+            raise StandardOutputError(_CLOSED_STDOUT)
         try:
             return self._guarded(self._stream.write, text)
         except UnicodeEncodeError:  # a file name that is not valid in the terminal's encoding: escape it
