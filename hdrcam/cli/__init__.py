@@ -46,8 +46,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`."""
+def main(argv: list[str] | None = None, *, step: str | None = None) -> int:
+    """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`. ``step``: this command is
+    that step of another (``demo``): an interrupt is raised on, with the step's name, for the outer command to
+    report under its own name."""
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(next((word for word in argv if not word.startswith("-")), None))
     try:
@@ -70,15 +72,11 @@ def main(argv: list[str] | None = None) -> int:
     except StepFailed as failure:  # the step has printed its own line
         return failure.status
     except KeyboardInterrupt as interrupt:
-        number = getattr(interrupt, "signal_number", signal.SIGINT)
-        _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
-        return 128 + number
+        return _interrupted(name, interrupt, step)
     except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
         interrupt = _interrupt_behind(error)
         if interrupt is not None:  # an extension module's import turned the interrupt into an ImportError
-            number = getattr(interrupt, "signal_number", signal.SIGINT)
-            _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
-            return 128 + number
+            return _interrupted(name, interrupt, step)
         if _debugging():
             traceback.print_exc()
         message = failure_message(error)
@@ -88,6 +86,19 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
                 "traceback that HDRCAM_DEBUG=1 shows)")
         return EXIT_BUG
+
+
+def _interrupted(name: str, interrupt: KeyboardInterrupt, step: str | None) -> int:
+    """Report an interrupt in one line and return its exit status (128 + the signal's number); a step's
+    interrupt is raised on to the command that runs it, so that the line names the command the user typed."""
+    if step is not None:
+        if getattr(interrupt, "step", None) is None:  # the innermost step names it
+            interrupt.step = step
+        raise interrupt
+    number = getattr(interrupt, "signal_number", signal.SIGINT)
+    where = f" in its step '{interrupt.step}'" if getattr(interrupt, "step", None) else ""
+    _report(f"{name}: interrupted by {signal.Signals(number).name}{where}; outputs not finished were removed")
+    return 128 + number
 
 
 def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:

@@ -150,3 +150,22 @@ def test_reconstruct_with_standard_output_closed_is_refused_before_any_work(tmp_
     assert capsys.readouterr().err == ("hdrcam reconstruct: error: cannot write to standard output (it is closed); "
                                        "redirect it to a file or /dev/null\n")
     assert not (tmp_path / "out").exists()
+
+
+def _interrupted_by_sigint(arguments):
+    from hdrcam.errors import Interrupted
+
+    raise Interrupted(2)
+
+
+@pytest.mark.parametrize("stop", [_interrupted_by_sigint, _import_interrupted])
+def test_an_interrupted_demo_says_demo_and_the_step_it_was_in(stop, tmp_path, monkeypatch, capsys):
+    """Its one line named the inner command ('hdrcam capture bracket: interrupted ...'), one the user did not type."""
+    from hdrcam.cli import capture_command
+
+    monkeypatch.setattr(capture_command, "run", stop)  # the demo's first step
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--size", "64", "64", "--finetune-steps", "0"]) == 130
+    assert capsys.readouterr().err == ("hdrcam demo: interrupted by SIGINT in its step 'capture calibration bracket'; "
+                                       "outputs not finished were removed\n")
+    assert sorted(path.name for path in out.iterdir()) == ["design-psf.exr"]  # written before the step, kept
