@@ -46,8 +46,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`."""
+def main(argv: list[str] | None = None, *, step: str | None = None) -> int:
+    """Run one command; the exit status follows the contract in :mod:`hdrcam.errors`. ``step``: this command is
+    that step of another (``demo``): an interrupt is raised on, with the step's name, for the outer command to
+    report under its own name."""
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(next((word for word in argv if not word.startswith("-")), None))
     try:
@@ -70,15 +72,11 @@ def main(argv: list[str] | None = None) -> int:
     except StepFailed as failure:  # the step has printed its own line
         return failure.status
     except KeyboardInterrupt as interrupt:
-        number = getattr(interrupt, "signal_number", signal.SIGINT)
-        _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
-        return 128 + number
+        return _interrupted(name, interrupt, step)
     except Exception as error:  # never a traceback for users; HDRCAM_DEBUG=1 shows it
         interrupt = _interrupt_behind(error)
         if interrupt is not None:  # an extension module's import turned the interrupt into an ImportError
-            number = getattr(interrupt, "signal_number", signal.SIGINT)
-            _report(f"{name}: interrupted by {signal.Signals(number).name}; outputs not finished were removed")
-            return 128 + number
+            return _interrupted(name, interrupt, step)
         if _debugging():
             traceback.print_exc()
         message = failure_message(error)
@@ -88,6 +86,19 @@ def main(argv: list[str] | None = None) -> int:
         _report(f"{name}: internal error: {type(error).__name__}: {error} (a bug; please report it, with the "
                 "traceback that HDRCAM_DEBUG=1 shows)")
         return EXIT_BUG
+
+
+def _interrupted(name: str, interrupt: KeyboardInterrupt, step: str | None) -> int:
+    """Report an interrupt in one line and return its exit status (128 + the signal's number); a step's
+    interrupt is raised on to the command that runs it, so that the line names the command the user typed."""
+    if step is not None:
+        if getattr(interrupt, "step", None) is None:  # the innermost step names it
+            interrupt.step = step
+        raise interrupt
+    number = getattr(interrupt, "signal_number", signal.SIGINT)
+    where = f" in its step '{interrupt.step}'" if getattr(interrupt, "step", None) else ""
+    _report(f"{name}: interrupted by {signal.Signals(number).name}{where}; outputs not finished were removed")
+    return 128 + number
 
 
 def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
@@ -123,6 +134,19 @@ class StandardOutputError(HdrcamError):
     """Standard output cannot be written (a full device, a closed pipe)."""
 
 
+_CLOSED_STDOUT = "cannot write to standard output (it is closed); redirect it to a file or /dev/null"
+
+
+def require_standard_output() -> None:
+    """Refuse, before any work, a command whose results go to a closed standard output (``>&-``): without this
+    it would do all the work and write its files, then fail at its first print. (``capture`` and ``inspect``
+    print before any work, which refuses the same way.) A full device or a reader that has gone shows only
+    when written to, and is reported then."""
+    stream = sys.stdout
+    if stream is None or (isinstance(stream, _GuardedOutput) and stream._stream is None):
+        raise StandardOutputError(_CLOSED_STDOUT)
+
+
 class _GuardedOutput:
     """Wraps sys.stdout while a command runs: a failed write becomes a one-line StandardOutputError, and the
     descriptor then points at /dev/null so that the interpreter's own flush at exit cannot fail again."""
@@ -132,8 +156,7 @@ class _GuardedOutput:
 
     def write(self, text: str) -> int:
         if self._stream is None:
-            raise StandardOutputError("cannot write to standard output (it is closed); redirect it to a file or "
-                                      "/dev/null")
+            raise StandardOutputError(_CLOSED_STDOUT)
         try:
             return self._guarded(self._stream.write, text)
         except UnicodeEncodeError:  # a file name that is not valid in the terminal's encoding: escape it

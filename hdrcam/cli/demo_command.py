@@ -41,7 +41,7 @@ def _step(label: str, argv: list[str], timings: dict) -> None:
 
     print(f"== {label}: hdrcam {' '.join(argv)}", flush=True)
     started = time.perf_counter()
-    status = main(argv)
+    status = main(argv, step=label)  # an interrupt is raised on, and reported as demo's, naming the step
     timings[label] = round(time.perf_counter() - started, 1)
     if status:
         raise StepFailed(status)

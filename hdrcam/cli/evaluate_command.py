@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import sys
 import time
+import warnings
 from pathlib import Path
 
 from hdrcam.cli.arguments import positive_int, random_seed
@@ -71,7 +74,31 @@ def fresh_output_folder() -> Path:
     return folder
 
 
+@contextlib.contextmanager
+def _warnings_on_lines_of_their_own():
+    """Warnings shown while a progress bar is on stderr's line go on lines of their own, the bar cleared and
+    redrawn below them (tqdm.external_write_mode, as reconstruct's), not run on from the bar."""
+    from tqdm import tqdm
+
+    shown = warnings.showwarning
+
+    def show(*arguments, **keywords):
+        with tqdm.external_write_mode(file=sys.stderr):
+            shown(*arguments, **keywords)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = shown
+
+
 def run(arguments: argparse.Namespace) -> int:
+    with _warnings_on_lines_of_their_own():
+        return _run(arguments)
+
+
+def _run(arguments: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from hdrcam.data.scenes import PROCEDURAL, SceneSource

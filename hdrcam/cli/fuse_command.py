@@ -45,6 +45,7 @@ def register(commands) -> None:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.cli import require_standard_output
     from hdrcam.hdr.bracket_input import bracket_input_files
     from hdrcam.hdr.fuse import fuse
     from hdrcam.io.atomic import atomic_paths, write_bytes_atomic
@@ -53,6 +54,7 @@ def run(arguments: argparse.Namespace) -> int:
     from hdrcam.io.png import encoded_png
     from hdrcam.preview import display_oriented, reduced_for_preview, tonemap_rgb
 
+    require_standard_output()  # the summary goes there: a closed one is refused before any file is read or written
     profile = load_profile(arguments.profile)
     out: Path = arguments.out
     preview = out.with_suffix(".png")

@@ -76,6 +76,9 @@ def output_paths(out: Path, source: Path) -> tuple[Path, Path, Path]:
 
 
 def run(arguments: argparse.Namespace) -> int:
+    from hdrcam.cli import require_standard_output
+
+    require_standard_output()  # each frame's JSON line goes there: a closed one is refused before any work
     import numpy as np
     import torch
 

@@ -47,6 +47,13 @@ class TestScene(NamedTuple):
     seed: int
 
 
+def protocol_shortfall(truth: np.ndarray) -> str | None:
+    """Why a test scene's scored centre (H x W x 3) misses the protocol's 1.5 % above 1 (so it is not scored:
+    hdrcam.data.saturation.fraction_shortfall), or None when it meets it."""
+    return fraction_shortfall(clipped_fraction(truth), TEST_CLIPPED_FRACTION, truth.shape[0] * truth.shape[1],
+                              lit=int(np.count_nonzero(truth.max(axis=-1) > 0.0)))
+
+
 def name_seed(name: str) -> int:
     """A file name's CRC-32 (0 to 2^32 - 1) over its bytes (UTF-8 of its NFC form: macOS stores "Café" decomposed,
     Linux composed; a name that is not valid UTF-8, its own bytes): the same in every run and on every platform,
@@ -176,7 +183,8 @@ class SceneSource:
         stem or is named so: Bonita.exr beside Bonita.exr.hdr) and seeded (TestScene): a
         photograph's crop by its file name, not its place in the folder. A photograph without
         light in its crop stays in its place unscaled (no pixel above 1); one smaller than the crop is
-        mirrored to fill it, with a warning. Each is cropped as it is asked for (a crop of a large panorama takes
+        mirrored to fill it, with a warning where it can be scored (protocol_shortfall: where it cannot, evaluate's
+        'not scored' is the one warning). Each is cropped as it is asked for (a crop of a large panorama takes
         seconds)."""
         if self.folder is None:
             canvas = max(PROCEDURAL_CANVAS_PX, size_px + 2 * TEST_CONTEXT_PX)
@@ -191,9 +199,6 @@ class SceneSource:
             for path, image in zip(self.folder.files, self.folder.images):
                 seed = name_seed(path.name)
                 rng = np.random.default_rng(TEST_SEED_BASE + seed)
-                if min(image.shape[:2]) < size_px:
-                    warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
-                                  "test crop: mirrored to fill it, and the mirrored copies are scored too")
                 crop = scored_crop(image, size_px, margin_px, TEST_CONTEXT_PX, rng)
                 unique = stems.count(path.stem) == 1 and path.stem not in names  # Bonita.exr.hdr's stem is
                 name = escaped_name(path.stem if unique else path.name)  # Bonita.exr's name
@@ -201,6 +206,10 @@ class SceneSource:
                     scaled = _scaled(crop, TEST_CLIPPED_FRACTION, margin_px)
                 except InputError:  # no light to scale: kept unscaled (evaluate leaves it out, as it does any
                     scaled = np.clip(crop, 0.0, HIGHLIGHT_PEAK).astype(np.float32)  # photograph it cannot scale,
+                centre = scaled[margin_px:margin_px + size_px, margin_px:margin_px + size_px]
+                if min(image.shape[:2]) < size_px and protocol_shortfall(centre) is None:  # else only 'not scored'
+                    warnings.warn(f"{path}: {image.shape[1]} x {image.shape[0]} px, smaller than the {size_px} px "
+                                  "test crop: mirrored to fill it, and the mirrored copies are scored too")
                 yield TestScene(name, scaled, seed)  # and names it)
 
 

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 
 from hdrcam.api import reconstruct, resolve_partner
-from hdrcam.data.saturation import TEST_CLIPPED_FRACTION, clipped_fraction, fraction_shortfall
-from hdrcam.data.scenes import SceneSource
+from hdrcam.data.saturation import clipped_fraction
+from hdrcam.data.scenes import SceneSource, protocol_shortfall
 from hdrcam.errors import InputError
 from hdrcam.evaluate.metrics import all_metrics
 from hdrcam.profiles import load_profile
@@ -82,8 +82,7 @@ def evaluate_models(models: dict[str, TrainedModel], source: SceneSource, *, siz
     for index, (name, scene, scene_seed) in enumerate(source.test_scenes(size_px, margin, count)):
         truth = scene[margin:margin + size_px, margin:margin + size_px]
         fraction = clipped_fraction(truth)
-        shortfall = fraction_shortfall(fraction, TEST_CLIPPED_FRACTION, size_px * size_px,
-                                       lit=int(np.count_nonzero(truth.max(axis=-1) > 0.0)))
+        shortfall = protocol_shortfall(truth)  # test_scenes' own test, so its warnings agree with this one
         if shortfall:
             warnings.warn(f"{name}: not scored - scaled as the protocol asks, {shortfall}")
             if unscored is not None:

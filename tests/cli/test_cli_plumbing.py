@@ -125,3 +125,47 @@ def test_an_error_raised_while_an_interrupt_was_handled_is_reported_as_itself(mo
     monkeypatch.setattr(fabricate_command, "run", _disk_full_while_cleaning_up)
     assert main(["fabricate", "x.exr"]) == 1  # not 130 'interrupted ... outputs removed'
     assert "no space left on the device" in capsys.readouterr().err
+
+
+def test_fuse_with_standard_output_closed_is_refused_before_any_work(bracket, tmp_path, monkeypatch, capsys):
+    """`hdrcam fuse ... >&-` merged the bracket and published X.exr and X.png, then exited 1 at its summary."""
+    out = tmp_path / "x.exr"
+    monkeypatch.setattr(sys, "stdout", None)  # what Python starts with when descriptor 1 is closed
+    assert main(["fuse", str(bracket), "--profile", "simulated", "--out", str(out)]) == 1
+    assert capsys.readouterr().err == ("hdrcam fuse: error: cannot write to standard output (it is closed); "
+                                       "redirect it to a file or /dev/null\n")
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_reconstruct_with_standard_output_closed_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    """`hdrcam reconstruct ... >&-` reconstructed and wrote the frame's three files, then exited 1."""
+    import numpy as np
+
+    from hdrcam.io.exr import write_exr
+
+    frame = tmp_path / "frame.exr"
+    write_exr(frame, np.random.default_rng(0).uniform(0.0, 1.0, (48, 64, 3)).astype(np.float32))
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main(["reconstruct", str(frame), "--no-partner", "--out", str(tmp_path / "out")]) == 1
+    assert capsys.readouterr().err == ("hdrcam reconstruct: error: cannot write to standard output (it is closed); "
+                                       "redirect it to a file or /dev/null\n")
+    assert not (tmp_path / "out").exists()
+
+
+def _interrupted_by_sigint(arguments):
+    from hdrcam.errors import Interrupted
+
+    raise Interrupted(2)
+
+
+@pytest.mark.parametrize("stop", [_interrupted_by_sigint, _import_interrupted])
+def test_an_interrupted_demo_says_demo_and_the_step_it_was_in(stop, tmp_path, monkeypatch, capsys):
+    """Its one line named the inner command ('hdrcam capture bracket: interrupted ...'), one the user did not type."""
+    from hdrcam.cli import capture_command
+
+    monkeypatch.setattr(capture_command, "run", stop)  # the demo's first step
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--size", "64", "64", "--finetune-steps", "0"]) == 130
+    assert capsys.readouterr().err == ("hdrcam demo: interrupted by SIGINT in its step 'capture calibration bracket'; "
+                                       "outputs not finished were removed\n")
+    assert sorted(path.name for path in out.iterdir()) == ["design-psf.exr"]  # written before the step, kept

@@ -297,10 +297,16 @@ def test_a_mixture_led_by_procedural_tests_on_procedural_scenes_only(tmp_path):
         np.testing.assert_array_equal(first.radiance, second.radiance)
 
 
-def test_a_photograph_smaller_than_the_test_crop_is_warned_about(tmp_path):
+def test_a_photograph_smaller_than_the_test_crop_is_warned_about_where_it_can_be_scored(tmp_path):
+    """One that cannot be scored was also said to be 'scored too', and then evaluate said 'not scored'."""
+    from hdrcam.data.scenes import protocol_shortfall
+
     _lamps(tmp_path, height=80, width=120)
-    with pytest.warns(UserWarning, match=r"p0.exr: 120 x 80 px, smaller than the 96 px test crop: mirrored"):
-        list(SceneSource(str(tmp_path)).test_scenes(96, 8, 0))
+    with pytest.warns(UserWarning, match=r"120 x 80 px, smaller than the 96 px test crop: mirrored") as caught:
+        scenes = list(SceneSource(str(tmp_path)).test_scenes(96, 8, 0))
+    warned = {Path(str(warning.message).split(":")[0]).stem for warning in caught}
+    scoreable = {scene.name for scene in scenes if protocol_shortfall(scene.radiance[8:104, 8:104]) is None}
+    assert warned == scoreable and 0 < len(scoreable) < len(scenes), (warned, scoreable)
 
 
 def test_a_point_of_light_on_black_is_refused_with_how_many_pixels_hold_light():
