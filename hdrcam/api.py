@@ -93,9 +93,9 @@ def reconstruct(frame: np.ndarray, model=None, *, psf: np.ndarray | None = None,
     ``place_highlights`` (off by default: on the validation photographs it changed nothing yet;
     hdrcam.recon.highlight_placement), light is then added where long streaks say a blob's light sits (a sun
     inside its glow) and the judge vets the result again, so the confidence map and the report are the second
-    judge's. A frame
-    clipped in every channel of every pixel records nothing to reconstruct from: InputError
-    (hdrcam.recon.tiling.refuse_all_clipped).
+    judge's. The confidence map is the judge's (the share of the proposed excess it kept); the fill leaves it
+    as it is and ``colour_filled`` counts the samples it raised. A frame clipped in every channel of every
+    pixel records nothing to reconstruct from: InputError (hdrcam.recon.tiling.refuse_all_clipped).
     """
     for name, value, reader in (("frame", frame, "hdrcam.io.ldr_frame.read_ldr_frame(path)"),
                                 ("model", model, "hdrcam.load_network_model(path)"),
