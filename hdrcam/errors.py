@@ -99,19 +99,27 @@ _USB_DEFAULT_ADVICE = ("check the camera's cable, power and PC-remote mode, then
                        "continues a bracket)")
 
 
+def not_a_file_reason(path, expected: str) -> str:
+    """Why ``path``, not a regular file, cannot be read as ``expected`` (e.g. 'an image file'), for a message after
+    its path: "a folder, not EXPECTED", "not a regular file (a device, pipe or socket)" (/dev/null and a FIFO were
+    called missing) or "no such file"."""
+    import os
+
+    if os.path.isdir(path):
+        return f"a folder, not {expected}"
+    return "not a regular file (a device, pipe or socket)" if os.path.exists(path) else "no such file"
+
+
 def missing_input(path, expected: str, *, option: str | None = None, missing: str | None = None) -> InputError:
-    """The one-line InputError for an input ``path`` that is not a regular file: a folder is named as one, not
-    ``expected`` (e.g. 'a checkpoint file'; as hdrcam.io.file_magic.missing_file_reason words it for images), a
-    device, pipe or socket as not a regular file, anything else is ``missing`` (default 'PATH: no such file').
-    ``option`` (e.g. '--psf') goes before the path."""
+    """The one-line InputError for an input ``path`` that is not a regular file (:func:`not_a_file_reason`), where
+    a path that does not exist says ``missing`` (default 'PATH: no such file'); ``option`` (e.g. '--psf') goes
+    before the path."""
     import os
 
     named = f"{option} {path}" if option else f"{path}"
-    if os.path.isdir(path):
-        return InputError(f"{named}: a folder, not {expected}")
-    if os.path.exists(path):
-        return InputError(f"{named}: not a regular file (a device, pipe or socket), not {expected}")
-    return InputError(missing or f"{named}: no such file")
+    if missing is not None and not os.path.exists(path):
+        return InputError(missing)
+    return InputError(f"{named}: {not_a_file_reason(path, expected)}")
 
 
 def os_error_message(error: OSError) -> str:

@@ -8,6 +8,7 @@
 # Usage: bash tools/stress_crops.sh OUT K1 K2 ... [-- EVALUATE OPTIONS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"  # this tree's hdrcam, not the one .venv was installed from
 [ $# -ge 1 ] || { echo "usage: $0 OUT K1 K2 ... [-- EVALUATE OPTIONS]" >&2; exit 2; }
 out=$1; shift
 [ -d runs/data/train ] || { echo "runs/data is missing: python tools/split_hdr_train.py ../shared/data/hdr-train --out runs/data" >&2; exit 2; }

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 
 from hdrcam.colorimetry import in_rec709
-from hdrcam.errors import InputError, failure_message
+from hdrcam.errors import InputError, failure_message, not_a_file_reason
 from hdrcam.io.exr import read_exr
-from hdrcam.io.file_magic import file_format, is_empty_file, missing_file_reason
+from hdrcam.io.file_magic import file_format, is_empty_file
 from hdrcam.io.opencv_image import opencv_image
 from hdrcam.io.radiance import RADIANCE_SUFFIXES, is_radiance_file, read_radiance_stored
 from hdrcam.io.tiff_image import read_tiff_rgb
@@ -32,7 +32,7 @@ def read_hdr_image(path: Path, *, warn_negative: bool = False, infinite_as_peak:
     instead of refused."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: {missing_file_reason(path)}")
+        raise InputError(f"{path}: {not_a_file_reason(path, 'an image file')}")
     if is_empty_file(path):
         raise InputError(f"{path}: an empty file (0 bytes)")
     kind = file_format(path) or SUFFIX_FORMATS.get(path.suffix.lower())

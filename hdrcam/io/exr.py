@@ -32,10 +32,10 @@ import numpy as np
 import OpenEXR
 
 from hdrcam.colorimetry import REC709_CHROMATICITIES, in_rec709, normalised_primary_matrix, to_rec709_matrix
-from hdrcam.errors import InputError, escaped_name
+from hdrcam.errors import InputError, escaped_name, not_a_file_reason
 from hdrcam.io.atomic import atomic_path
 from hdrcam.io.c_stderr import c_stderr_silenced
-from hdrcam.io.file_magic import EXR_MAGIC, missing_file_reason, not_format_reason, starts_with
+from hdrcam.io.file_magic import EXR_MAGIC, not_format_reason, starts_with
 from hdrcam.limits import check_image_size, check_memory
 from hdrcam.parallel import worker_threads
 
@@ -137,7 +137,7 @@ def read_exr(path: Path, *, to_rec709: bool = True) -> ExrImage:
     samples are clipped per stored channel, which a matrix would mix."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: {missing_file_reason(path)}")
+        raise InputError(f"{path}: {not_a_file_reason(path, 'an image file')}")
     data = path.read_bytes()  # through Python: any file name works, and OS errors keep their cause
     if not data.startswith(EXR_MAGIC):  # OpenEXR would name its own stream, "<python_buffer>", not the file
         raise InputError(f"{path}: {not_format_reason(path, 'OpenEXR')}")

@@ -50,13 +50,3 @@ def not_format_reason(path: Path, expected: str) -> str:
     if found is not None and found != expected:
         return f"{_ARTICLES[found]}, not {_ARTICLES[expected]}"
     return f"not {_ARTICLES[expected]} (it does not start with {expected}'s magic bytes)"
-
-
-def missing_file_reason(path: Path) -> str:
-    """Why ``path``, which is not a regular file, cannot be read as an image, for a message after its path: "no
-    such file", "a folder, not an image file" or "not a regular file (a device, pipe or socket)" (/dev/null and a
-    FIFO were called missing)."""
-    path = Path(path)
-    if path.is_dir():
-        return "a folder, not an image file"
-    return "not a regular file (a device, pipe or socket)" if path.exists() else "no such file"

@@ -34,11 +34,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hdrcam.errors import InputError
+from hdrcam.errors import InputError, not_a_file_reason
 from hdrcam.io.bad_pixels import BadPixelList, repair_mosaic, repair_rgb
 from hdrcam.io.demosaic import DEFAULT_METHOD, demosaic
 from hdrcam.io.exr import exr_orientation, lossy_compression, read_exr
-from hdrcam.io.file_magic import file_format, is_empty_file, missing_file_reason
+from hdrcam.io.file_magic import file_format, is_empty_file
 from hdrcam.io.opencv_image import opencv_image
 from hdrcam.io.png import declared_nonlinear_encoding, grey_png_kind
 from hdrcam.io.radiance import read_radiance
@@ -83,7 +83,7 @@ def read_ldr_capture(path: Path, demosaic_method: str = DEFAULT_METHOD,
     counted for the frame's capture time; an EXR's, TIFF's or PNG's per pixel after it (every listed pixel)."""
     path = Path(path)
     if path.exists() and not path.is_file() and not path.is_dir():  # /dev/null, a FIFO: not "does not exist"
-        raise InputError(f"{path}: {missing_file_reason(path)}")
+        raise InputError(f"{path}: {not_a_file_reason(path, 'an image file')}")
     if not path.is_file():
         raise InputError(f"{path} is a folder; give the frames in it" if path.is_dir() else f"{path} does not exist")
     suffix, orientation, exr, bad, neutral = path.suffix.lower(), 1, False, None, (1.0, 1.0, 1.0)
